@@ -1,0 +1,7 @@
+"""``python -m hestore``: the same as the ``hestore`` command."""
+
+import sys
+
+from hestore.cli import main
+
+sys.exit(main())

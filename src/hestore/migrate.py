@@ -1,0 +1,267 @@
+"""The link between hestore's schema and Alembic.
+
+`hestore.schema` defines the tables; the Alembic revisions in the
+``migrations`` folder (shipped inside the wheel as ``hestore/migrations``)
+create and change them. This module finds those revisions, builds an Alembic
+configuration for them without an ``alembic.ini``, and runs them on a
+connection the caller owns: `hestore.open` uses it to create a new database at
+head, and ``hestore db upgrade`` / ``hestore db current`` to bring an older one
+forward and to report where one stands.
+
+>>> import sqlalchemy as sa
+>>> from hestore import migrate
+>>> engine = sa.create_engine("sqlite://")
+>>> with engine.connect() as conn:
+...     print(migrate.current_revision(conn))
+...     migrate.upgrade(conn)
+...     print(migrate.current_revision(conn) == migrate.head_revision())
+None
+True
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import sqlalchemy as sa
+
+from hestore.errors import SchemaVersionError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import alembic.config
+    import alembic.script
+
+__all__ = [
+    "script_location",
+    "alembic_config",
+    "upgrade",
+    "downgrade",
+    "current_revision",
+    "head_revision",
+    "revisions",
+]
+
+#: The table in which Alembic records the revision a database is at.
+VERSION_TABLE = "alembic_version"
+
+
+def script_location() -> str:
+    """Return the folder holding hestore's Alembic environment and revisions.
+
+    An installed hestore carries them inside the package as
+    ``hestore/migrations``; an editable install or a source checkout has them
+    in the repository's top-level ``migrations/`` folder instead.
+
+    Returns
+    -------
+    str
+        Path of a folder containing ``env.py`` and ``versions/``.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from hestore.migrate import script_location
+    >>> (Path(script_location()) / "env.py").is_file()
+    True
+    """
+    packaged = importlib.resources.files("hestore") / "migrations"
+    if packaged.joinpath("env.py").is_file():
+        # Alembic needs a real folder; an installed package is one on disk.
+        return str(packaged)
+    return str(Path(__file__).resolve().parents[2] / "migrations")
+
+
+def alembic_config(
+    connection: sa.Connection | None = None, url: str | None = None
+) -> alembic.config.Config:
+    """Build an Alembic configuration for hestore's revisions, without an ini file.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection, optional
+        When given, migrations run on this connection (inside its current
+        transaction, if it has one) instead of opening their own.
+    url : str, optional
+        Database URL for migrations run without a connection. When neither is
+        given, ``env.py`` falls back to ``$HESTORE_URL``, then
+        ``sqlite:///hestore.db``.
+
+    Returns
+    -------
+    alembic.config.Config
+        Usable with any `alembic.command` function.
+
+    Examples
+    --------
+    >>> from alembic import command
+    >>> from hestore.migrate import alembic_config
+    >>> cfg = alembic_config(url="sqlite://")
+    >>> cfg.get_main_option("sqlalchemy.url")
+    'sqlite://'
+    """
+    from alembic.config import Config
+
+    config = Config()
+    config.set_main_option("script_location", script_location())
+    if url is not None:
+        # The options go through configparser, which treats % as interpolation
+        # (URL-encoded passwords and query options contain it).
+        config.set_main_option("sqlalchemy.url", str(url).replace("%", "%%"))
+    if connection is not None:
+        config.attributes["connection"] = connection
+    return config
+
+
+def upgrade(connection: sa.Connection, revision: str = "head") -> None:
+    """Migrate the database behind `connection` to `revision`, and commit.
+
+    Works on an empty database (every revision runs) as well as on one at
+    any older revision; a database already at `revision` is left alone.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection; whatever it has done in its current transaction
+        is committed together with the migration.
+    revision : str, default "head"
+        The target revision id.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore.migrate import current_revision, upgrade
+    >>> with sa.create_engine("sqlite://").connect() as conn:
+    ...     upgrade(conn, "0001")
+    ...     print(current_revision(conn))
+    0001
+    """
+    from alembic import command
+
+    command.upgrade(alembic_config(connection=connection), revision)
+    connection.commit()
+
+
+def downgrade(connection: sa.Connection, revision: str) -> None:
+    """Migrate the database behind `connection` back to `revision`, and commit.
+
+    Destructive: going below a revision drops what it created, data included.
+    Meant for testing revisions (see ``docs/migrations.md``), not for use on
+    stored meshes.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection.
+    revision : str
+        The target revision id, or ``"base"`` for an empty database.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore.migrate import current_revision, downgrade, upgrade
+    >>> with sa.create_engine("sqlite://").connect() as conn:
+    ...     upgrade(conn)
+    ...     downgrade(conn, "base")
+    ...     print(current_revision(conn), sa.inspect(conn).has_table("meshes"))
+    None False
+    """
+    from alembic import command
+
+    command.downgrade(alembic_config(connection=connection), revision)
+    connection.commit()
+
+
+def current_revision(connection: sa.Connection) -> str | None:
+    """Return the revision the database is at, or None for an unversioned one.
+
+    Reads Alembic's version table directly (no migration environment is
+    loaded), so it is cheap enough to call on every `hestore.open`.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection.
+
+    Returns
+    -------
+    str or None
+        The revision id; None when the version table is missing or empty
+        (a new database, or one emptied by downgrading to base).
+
+    Raises
+    ------
+    SchemaVersionError
+        The version table names several revisions: hestore's history is
+        linear, so the database was changed by something else.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore.migrate import current_revision
+    >>> with sa.create_engine("sqlite://").connect() as conn:
+    ...     print(current_revision(conn))
+    None
+    """
+    if not sa.inspect(connection).has_table(VERSION_TABLE):
+        return None
+    version = sa.table(VERSION_TABLE, sa.column("version_num", sa.String))
+    rows = connection.execute(sa.select(version.c.version_num)).scalars().all()
+    if not rows:
+        return None
+    if len(rows) > 1:
+        raise SchemaVersionError(
+            f"the database records several schema revisions ({', '.join(sorted(rows))}); "
+            "hestore's schema history is linear, so it was changed outside hestore"
+        )
+    return rows[0]
+
+
+@functools.cache
+def _scripts() -> alembic.script.ScriptDirectory:
+    # Parsing the revision files is the slow part; they cannot change while
+    # this process runs, so do it once.
+    from alembic.script import ScriptDirectory
+
+    return ScriptDirectory.from_config(alembic_config())
+
+
+def head_revision() -> str:
+    """Return the newest revision this version of hestore knows.
+
+    A test keeps it equal to `hestore.schema.SCHEMA_REVISION`.
+
+    Returns
+    -------
+    str
+        The head revision id.
+
+    Examples
+    --------
+    >>> from hestore import migrate, schema
+    >>> migrate.head_revision() == schema.SCHEMA_REVISION
+    True
+    """
+    head = _scripts().get_current_head()
+    if head is None:  # pragma: no cover - only a broken install has no revisions
+        raise SchemaVersionError(f"no schema revisions found in {script_location()}")
+    return head
+
+
+def revisions() -> list[str]:
+    """Return every revision this version of hestore knows, oldest first.
+
+    Returns
+    -------
+    list of str
+        Revision ids from the first to `head_revision`.
+
+    Examples
+    --------
+    >>> from hestore.migrate import head_revision, revisions
+    >>> revisions()[0], revisions()[-1] == head_revision()
+    ('0001', True)
+    """
+    return [script.revision for script in reversed(list(_scripts().walk_revisions()))]

@@ -1,0 +1,103 @@
+"""The storage schema: the only place hestore's tables are defined.
+
+Every element table is keyed ``(mesh_id, id)`` and every query filters by
+``mesh_id``, so one database holds many meshes and a mesh can later be the
+distribution key of a sharded PostgreSQL. Ids are allocated from the per-mesh
+counters in ``meshes`` and never reused.
+
+There are deliberately no foreign keys between element tables: references
+form cycles (half-edge ↔ twin, next ↔ prev), and dangling references are an
+invariant (``REF``) that `hestore.validation` reports rather than one the
+database enforces row by row during bulk writes.
+
+Changes to these tables go through an Alembic revision in ``migrations/``;
+`SCHEMA_REVISION` names the revision this module corresponds to, and a test
+checks that the two agree.
+"""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+
+__all__ = [
+    "SCHEMA_REVISION",
+    "metadata",
+    "meshes",
+    "vertices",
+    "halfedges",
+    "edges",
+    "polygons",
+]
+
+#: The Alembic revision that creates exactly the tables below.
+SCHEMA_REVISION = "0002"
+
+metadata = sa.MetaData()
+
+_ID = sa.BigInteger()
+
+meshes = sa.Table(
+    "meshes",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("name", sa.String(255), nullable=False, unique=True),
+    sa.Column("allow_loops", sa.Boolean, nullable=False),
+    sa.Column("allow_multi_edges", sa.Boolean, nullable=False),
+    # One more per committed transaction that changed the mesh.
+    sa.Column("revision", _ID, nullable=False),
+    # Id counters: the next id to hand out. Half-edges take 2e and 2e+1.
+    sa.Column("next_vertex", _ID, nullable=False),
+    sa.Column("next_edge", _ID, nullable=False),
+    sa.Column("next_polygon", _ID, nullable=False),
+    # Never hand out a deleted mesh's id again (SQLite would reuse the top rowid).
+    sqlite_autoincrement=True,
+)
+
+vertices = sa.Table(
+    "vertices",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("id", _ID, primary_key=True),
+    sa.Column("halfedge", _ID, nullable=True),
+    sa.Column("x", sa.Float(53), nullable=True),
+    sa.Column("y", sa.Float(53), nullable=True),
+    sa.Column("z", sa.Float(53), nullable=True),
+    sqlite_with_rowid=False,
+)
+
+halfedges = sa.Table(
+    "halfedges",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("id", _ID, primary_key=True),
+    sa.Column("origin", _ID, nullable=False),
+    sa.Column("next", _ID, nullable=False),
+    sa.Column("prev", _ID, nullable=False),
+    sa.Column("twin", _ID, nullable=False),
+    sa.Column("edge", _ID, nullable=False),
+    sa.Column("polygon", _ID, nullable=True),
+    sa.Index("ix_halfedges_origin", "mesh_id", "origin"),
+    sa.Index("ix_halfedges_polygon", "mesh_id", "polygon"),
+    sqlite_with_rowid=False,
+)
+
+edges = sa.Table(
+    "edges",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("id", _ID, primary_key=True),
+    sa.Column("halfedge", _ID, nullable=False),
+    sqlite_with_rowid=False,
+)
+
+polygons = sa.Table(
+    "polygons",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("id", _ID, primary_key=True),
+    sa.Column("halfedge", _ID, nullable=False),
+    sqlite_with_rowid=False,
+)
+
+#: Element tables, in the order rows are deleted when a mesh is dropped.
+ELEMENT_TABLES = (polygons, edges, halfedges, vertices)

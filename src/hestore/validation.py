@@ -1,0 +1,1226 @@
+"""The invariants of the half-edge structure, and their set-based checking.
+
+This module owns the list of invariants a stored mesh must keep (SPEC §2), each
+under a stable code, and the code that checks them. `Mesh.check` and
+`Mesh.validate` are thin wrappers around `check`; `check_arrays` does the work
+on plain numpy arrays, so it can be used (and tested) without a database.
+
+The check is set-based: the tables of one mesh are read with one ``SELECT``
+each into int64 arrays (`load_arrays`), references are mapped to row indices
+(by subtraction, a lookup table or `numpy.searchsorted`), and the cyclic
+structures (polygon and boundary loops, the rotation around a vertex) are
+labelled with vectorised pointer jumping. There is no Python loop over
+elements: the cost is O(n log n) in the number of half-edges, and a Python
+object is built only per reported *violation*.
+
+Checking never repairs anything. Corrupted tables (dangling references, a
+``next`` that is not a permutation, ...) are reported; they never crash the
+check nor make it loop forever. A reference to a missing element is reported
+once, as ``REF``, and the checks that would have to follow it skip it.
+
+Invariant codes, in report order:
+
+==============  ==============================================================
+``H_TWIN``      ``twin(twin(h)) == h`` and ``twin(h) != h``
+``H_NEXT_PREV`` ``prev(next(h)) == h`` and ``next(prev(h)) == h``
+``H_ORIGIN``    ``origin(next(h)) == origin(twin(h))``
+``H_EDGE``      ``edge(h) == edge(twin(h))``, ``edge(e.halfedge) == e``, and
+                every edge has exactly two half-edges
+``H_POLYGON``   ``polygon(next(h)) == polygon(h)`` (NULL included)
+``P_LOOP``      the ``next`` loop from ``p.halfedge`` is exactly the
+                half-edges whose polygon is ``p``
+``V_HALFEDGE``  ``v.halfedge`` is NULL iff nothing starts at ``v``, else
+                ``origin(v.halfedge) == v``
+``V_ROTATION``  rotating (``h -> next(twin(h))``) from ``v.halfedge`` visits
+                every outgoing half-edge of ``v`` exactly once
+``V_BOUNDARY``  a vertex with a free outgoing half-edge has a free
+                ``v.halfedge``
+``REF``         every reference names an existing element of the mesh
+``POLICY``      no self-loop / parallel edge where the mesh forbids them
+==============  ==============================================================
+
+Examples
+--------
+One edge between two vertices (a wire edge: each half-edge is the other's
+``next`` and ``prev``), checked from arrays:
+
+>>> import numpy as np
+>>> from hestore.validation import TopologyArrays, check_arrays
+>>> def a(*values):
+...     return np.array(values, dtype=np.int64)
+>>> wire = TopologyArrays(
+...     he_id=a(0, 1), he_origin=a(0, 1), he_next=a(1, 0), he_prev=a(1, 0),
+...     he_twin=a(1, 0), he_edge=a(0, 0), he_polygon=a(-1, -1),
+...     v_id=a(0, 1), v_halfedge=a(0, 1), e_id=a(0), e_halfedge=a(0),
+...     p_id=a(), p_halfedge=a())
+>>> check_arrays(wire)
+[]
+>>> for violation in check_arrays(wire._replace(he_twin=a(1, 1))):
+...     print(violation)
+H_TWIN halfedge 0: twin(twin(0)) = 1 (twin(0) = 1), expected 0
+H_TWIN halfedge 1: twin(1) = 1: a half-edge cannot be its own twin
+H_ORIGIN halfedge 1: origin(next(1)) = origin(0) = vertex 0, but origin(twin(1)) = origin(1) = vertex 1
+V_ROTATION vertex 1: rotating from halfedge 1 leaves the vertex: next(twin(1)) = 0 starts at vertex 0
+>>> check_arrays(wire._replace(he_next=a(1, 7)))[0].message
+'next = 7, but there is no halfedge 7 in this mesh'
+"""
+
+from __future__ import annotations
+
+import itertools
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator, NamedTuple
+
+import numpy as np
+import sqlalchemy as sa
+
+from hestore import schema
+from hestore.errors import InvalidInputError
+
+__all__ = [
+    "CODES",
+    "CODE_DESCRIPTIONS",
+    "KINDS",
+    "Violation",
+    "TopologyArrays",
+    "load_arrays",
+    "check_arrays",
+    "check",
+]
+
+#: The invariant codes, in the order `check_arrays` reports them.
+CODES: tuple[str, ...] = (
+    "H_TWIN",
+    "H_NEXT_PREV",
+    "H_ORIGIN",
+    "H_EDGE",
+    "H_POLYGON",
+    "P_LOOP",
+    "V_HALFEDGE",
+    "V_ROTATION",
+    "V_BOUNDARY",
+    "REF",
+    "POLICY",
+)
+
+#: One line per invariant code: what it requires.
+CODE_DESCRIPTIONS: dict[str, str] = {
+    "H_TWIN": "twin(twin(h)) == h and twin(h) != h",
+    "H_NEXT_PREV": "prev(next(h)) == h and next(prev(h)) == h",
+    "H_ORIGIN": "origin(next(h)) == origin(twin(h)): the destination of h is consistent",
+    "H_EDGE": "edge(h) == edge(twin(h)); edge.halfedge is one of the edge's two half-edges; every edge has exactly two",
+    "H_POLYGON": "polygon(next(h)) == polygon(h), NULL included",
+    "P_LOOP": "walking next from p.halfedge returns to it and visits exactly the half-edges whose polygon is p",
+    "V_HALFEDGE": "v.halfedge is NULL iff no half-edge starts at v; else origin(v.halfedge) == v",
+    "V_ROTATION": "rotating around v from v.halfedge visits every outgoing half-edge of v exactly once",
+    "V_BOUNDARY": "if v has a free outgoing half-edge, v.halfedge is free",
+    "REF": "every reference points at an existing element of the same mesh",
+    "POLICY": "no loop / parallel edge in a mesh whose policy forbids them",
+}
+
+#: Element kinds a `Violation` can be about, in report order for equal ids.
+KINDS: tuple[str, ...] = ("halfedge", "vertex", "edge", "polygon")
+
+_CODE_RANK = {code: i for i, code in enumerate(CODES)}
+_KIND_RANK = {kind: i for i, kind in enumerate(KINDS)}
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken invariant, about one element.
+
+    Parameters
+    ----------
+    code : str
+        The invariant's code, one of `CODES`.
+    kind : str
+        The kind of the offending element: ``"halfedge"``, ``"vertex"``,
+        ``"edge"`` or ``"polygon"``.
+    ids : tuple of int
+        The ids involved, the offending element's first; the others are the
+        elements (of any kind, see `message`) the reason refers to.
+    message : str
+        The reason, naming the elements involved.
+
+    Examples
+    --------
+    >>> v = Violation("H_TWIN", "halfedge", (12, 40, 41), "twin(twin(12)) = 41 (twin(12) = 40), expected 12")
+    >>> str(v)
+    'H_TWIN halfedge 12: twin(twin(12)) = 41 (twin(12) = 40), expected 12'
+    >>> v.id
+    12
+    """
+
+    code: str
+    kind: str
+    ids: tuple[int, ...]
+    message: str
+
+    @property
+    def id(self) -> int:
+        """The id of the offending element (``ids[0]``)."""
+        return self.ids[0]
+
+    def __str__(self) -> str:
+        return f"{self.code} {self.kind} {self.ids[0]}: {self.message}"
+
+
+class TopologyArrays(NamedTuple):
+    """The topology of one mesh as int64 arrays, one group per table.
+
+    Each table's arrays are sorted by its ``id`` column; ids are the stored
+    ids (not dense, not row numbers). NULL references are ``-1``.
+
+    Attributes
+    ----------
+    he_id, he_origin, he_next, he_prev, he_twin, he_edge, he_polygon : ndarray
+        The ``halfedges`` table; ``he_polygon`` is -1 for a free half-edge.
+    v_id, v_halfedge : ndarray
+        The ``vertices`` table; ``v_halfedge`` is -1 for an isolated vertex.
+    e_id, e_halfedge : ndarray
+        The ``edges`` table.
+    p_id, p_halfedge : ndarray
+        The ``polygons`` table.
+
+    Examples
+    --------
+    >>> arrays = TopologyArrays.empty()
+    >>> len(arrays.he_id), arrays.he_id.dtype
+    (0, dtype('int64'))
+    """
+
+    he_id: np.ndarray
+    he_origin: np.ndarray
+    he_next: np.ndarray
+    he_prev: np.ndarray
+    he_twin: np.ndarray
+    he_edge: np.ndarray
+    he_polygon: np.ndarray
+    v_id: np.ndarray
+    v_halfedge: np.ndarray
+    e_id: np.ndarray
+    e_halfedge: np.ndarray
+    p_id: np.ndarray
+    p_halfedge: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "TopologyArrays":
+        """The arrays of a mesh without any element."""
+        return cls(*(np.empty(0, dtype=np.int64) for _ in cls._fields))
+
+
+# The tables' columns, grouped as TopologyArrays groups them.
+_GROUPS = (
+    ("halfedge", ("he_id", "he_origin", "he_next", "he_prev", "he_twin", "he_edge", "he_polygon")),
+    ("vertex", ("v_id", "v_halfedge")),
+    ("edge", ("e_id", "e_halfedge")),
+    ("polygon", ("p_id", "p_halfedge")),
+)
+
+
+# --------------------------------------------------------------------------
+# Loading
+
+
+_FETCH_ROWS = 65536
+
+_TABLES = (schema.halfedges, schema.vertices, schema.edges, schema.polygons)
+
+
+def _table_columns(table: sa.Table) -> list:
+    """The columns `TopologyArrays` takes from ``table``: non-NULL bigints (NULL -> -1)."""
+    null = sa.literal(-1, sa.BigInteger)
+    c = table.c
+    if table is schema.halfedges:
+        return [c.id, c.origin, c.next, c.prev, c.twin, c.edge, sa.cast(sa.func.coalesce(c.polygon, null), sa.BigInteger)]
+    if table is schema.vertices:
+        return [c.id, sa.cast(sa.func.coalesce(c.halfedge, null), sa.BigInteger)]
+    return [c.id, c.halfedge]
+
+
+@contextmanager
+def _read_snapshot(connection: sa.Connection) -> Iterator[None]:
+    """Make the statements run inside the block see one committed state.
+
+    A connection already in a transaction is used as it is (its reads see its
+    own writes). An idle SQLite connection gets a deferred ``BEGIN`` (a read
+    snapshot in WAL mode), an idle autocommit psycopg connection ``BEGIN
+    ISOLATION LEVEL REPEATABLE READ READ ONLY``; both are rolled back after,
+    leaving the connection as it was.
+    """
+    dbapi = connection.connection.dbapi_connection
+    begin = None
+    if connection.dialect.name == "sqlite":
+        if not getattr(dbapi, "in_transaction", True):
+            begin = "BEGIN"
+    elif connection.dialect.name == "postgresql" and connection.dialect.driver == "psycopg":
+        if dbapi.autocommit and dbapi.info.transaction_status == 0:  # pq.TransactionStatus.IDLE
+            begin = "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
+    if begin is None:
+        yield
+        return
+    cursor = dbapi.cursor()
+    try:
+        cursor.execute(begin)
+        try:
+            yield
+        finally:
+            cursor.execute("ROLLBACK")
+    finally:
+        cursor.close()
+
+
+def _fetch_cursor(connection: sa.Connection, table: sa.Table, mesh_id: int) -> list[np.ndarray]:
+    """``SELECT ... WHERE mesh_id = ... ORDER BY id``, read from the DBAPI cursor in chunks.
+
+    Each chunk of rows is flattened with `numpy.fromiter` (no SQLAlchemy
+    ``Row`` objects) and split into columns at once, so the peak memory is
+    about one copy of the result.
+    """
+    columns = _table_columns(table)
+    ncols = len(columns)
+    stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id).order_by(table.c.id)
+    parts: list[list[np.ndarray]] = [[] for _ in range(ncols)]
+    result = connection.execute(stmt)
+    try:
+        cursor = result.cursor
+        while True:
+            rows = cursor.fetchmany(_FETCH_ROWS)
+            if not rows:
+                break
+            flat = np.fromiter(itertools.chain.from_iterable(rows), dtype=np.int64, count=len(rows) * ncols)
+            del rows
+            matrix = flat.reshape(-1, ncols)
+            for k in range(ncols):
+                parts[k].append(matrix[:, k].copy())
+    finally:
+        result.close()
+    out = []
+    for k in range(ncols):
+        out.append(np.concatenate(parts[k]) if parts[k] else np.empty(0, dtype=np.int64))
+        parts[k] = []
+    return out
+
+
+_PGCOPY_SIGNATURE = b"PGCOPY\n\xff\r\n\x00"
+_INT8_OID = 20
+_ARRAY_ITEM = np.dtype([("length", ">i4"), ("value", ">i8")])
+
+
+class _CopyFormatError(RuntimeError):
+    """The binary COPY stream is not laid out as expected."""
+
+
+def _decode_int8_arrays(view: memoryview, nfields: int) -> list[np.ndarray]:
+    """Decode a binary COPY stream of one row of ``nfields`` non-NULL-element ``bigint[]``."""
+
+    def int_at(offset: int, size: int) -> int:
+        if offset + size > len(view):
+            raise _CopyFormatError("truncated COPY stream")
+        return int.from_bytes(view[offset : offset + size], "big", signed=True)
+
+    if bytes(view[:11]) != _PGCOPY_SIGNATURE:
+        raise _CopyFormatError("not a binary COPY stream")
+    pos = 19 + int_at(15, 4)
+    if int_at(pos, 2) != nfields:
+        raise _CopyFormatError("unexpected number of fields")
+    pos += 2
+    out = []
+    for _ in range(nfields):
+        length = int_at(pos, 4)
+        pos += 4
+        if length == -1:  # array_agg over no rows is NULL
+            out.append(np.empty(0, dtype=np.int64))
+            continue
+        ndim, flags, elemtype = int_at(pos, 4), int_at(pos + 4, 4), int_at(pos + 8, 4)
+        if ndim == 0:
+            out.append(np.empty(0, dtype=np.int64))
+        elif ndim == 1 and flags == 0 and elemtype == _INT8_OID:
+            count = int_at(pos + 12, 4)
+            if 20 + count * _ARRAY_ITEM.itemsize != length:
+                raise _CopyFormatError("unexpected array layout")
+            items = np.frombuffer(view, dtype=_ARRAY_ITEM, count=count, offset=pos + 20)
+            if not (items["length"] == 8).all():
+                raise _CopyFormatError("unexpected array element")
+            out.append(items["value"].astype(np.int64))
+            del items
+        else:
+            raise _CopyFormatError("unexpected array header")
+        pos += length
+    if bytes(view[pos:]) != b"\xff\xff":
+        raise _CopyFormatError("unexpected end of COPY stream")
+    return out
+
+
+def _fetch_pg_copy(connection: sa.Connection, mesh_id: int) -> list[np.ndarray]:
+    """All four tables in one statement, through binary ``COPY`` (psycopg 3).
+
+    ``SELECT`` of one ``array_agg`` per column per table, the four one-row
+    aggregates joined into one row: a single statement, so one snapshot even
+    in autocommit mode, and one protocol message decoded with one
+    `numpy.frombuffer` per column (no Python object per element). Rows come in
+    storage order; the caller sorts them by id.
+    """
+    from_ = None
+    columns = []
+    for k, table in enumerate(_TABLES):
+        aggregated = (
+            sa.select(*(sa.func.array_agg(c).label(f"c{i}") for i, c in enumerate(_table_columns(table))))
+            .where(table.c.mesh_id == mesh_id)
+            .subquery(f"t{k}")
+        )
+        columns.extend(aggregated.c)
+        from_ = aggregated if from_ is None else from_.join(aggregated, sa.true())
+    stmt = sa.select(*columns).select_from(from_)
+    sql = str(stmt.compile(dialect=connection.dialect, compile_kwargs={"literal_binds": True}))
+    chunks = []
+    with connection.connection.dbapi_connection.cursor() as cursor:
+        with cursor.copy(f"COPY ({sql}) TO STDOUT (FORMAT BINARY)") as copy:
+            for data in copy:
+                chunks.append(data)
+    buf = chunks[0] if len(chunks) == 1 else b"".join(chunks)
+    del chunks
+    with memoryview(buf) as view:
+        return _decode_int8_arrays(view, len(columns))
+
+
+def _use_pg_copy(connection: sa.Connection) -> bool:
+    return connection.dialect.name == "postgresql" and connection.dialect.driver == "psycopg"
+
+
+def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | None = None) -> TopologyArrays:
+    """Read the topology of one mesh into int64 arrays, as one consistent state.
+
+    Every table is read with one ``SELECT`` filtered by ``mesh_id``, without
+    SQLAlchemy ``Row`` objects:
+
+    - on PostgreSQL with psycopg 3, the four selects are ``array_agg``
+      aggregates joined into one statement, streamed by a binary ``COPY (...)
+      TO STDOUT`` and decoded with `numpy.frombuffer`; one statement is one
+      snapshot;
+    - elsewhere each is ``ORDER BY id``, fetched from the DBAPI cursor in
+      chunks and flattened with `numpy.fromiter`; on an idle connection (SQLite,
+      or autocommit psycopg) they run in a read-only transaction that is
+      rolled back after, so they too see one snapshot. A connection already in
+      a transaction reads within it (and sees its own writes).
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection to a database holding `hestore.schema`'s tables.
+    mesh_id : int
+        The ``meshes.id`` of the mesh to read.
+    use_copy : bool or None, optional
+        Force (True) or forbid (False) the PostgreSQL ``COPY`` path; by
+        default it is used on PostgreSQL with psycopg 3.
+
+    Returns
+    -------
+    TopologyArrays
+        Each table's arrays sorted by id; NULL references as -1. A mesh
+        without rows (or that does not exist) reads as empty arrays.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore import schema
+    >>> engine = sa.create_engine("sqlite://")
+    >>> schema.metadata.create_all(engine)
+    >>> with engine.begin() as conn:
+    ...     _ = conn.execute(schema.vertices.insert(), [{"mesh_id": 1, "id": 7, "halfedge": None}])
+    ...     arrays = load_arrays(conn, 1)
+    >>> arrays.v_id, arrays.v_halfedge
+    (array([7]), array([-1]))
+    >>> check_arrays(arrays)
+    []
+    """
+    mesh_id = int(mesh_id)
+    if use_copy is None:
+        use_copy = _use_pg_copy(connection)
+    if use_copy:
+        flat = _fetch_pg_copy(connection, mesh_id)
+    else:
+        flat = []
+        with _read_snapshot(connection):
+            for table in _TABLES:
+                flat.extend(_fetch_cursor(connection, table, mesh_id))
+    columns: list[np.ndarray] = []
+    start = 0
+    for _, names in _GROUPS:
+        cols = flat[start : start + len(names)]
+        start += len(names)
+        ids = cols[0]
+        if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
+            order = np.argsort(ids, kind="stable")
+            cols = [c[order] for c in cols]
+        columns.extend(cols)
+    return TopologyArrays(*columns)
+
+
+# --------------------------------------------------------------------------
+# Checking: helpers
+
+
+class _Index:
+    """Maps ids of one table (sorted, distinct) to row numbers.
+
+    Contiguous ids map by subtraction; ids spread over at most
+    ``_TABLE_SPREAD`` times their count through a lookup table; sparser ones
+    by `numpy.searchsorted` on the sorted references (sorted keys keep the
+    binary searches cache-friendly).
+    """
+
+    def __init__(self, ids: np.ndarray) -> None:
+        self.ids = ids
+        self.n = n = len(ids)
+        self.first = int(ids[0]) if n else 0
+        span = int(ids[-1]) - self.first + 1 if n else 0
+        self.contiguous = n > 0 and span == n
+        self.table = None
+        if n and not self.contiguous and span <= _TABLE_SPREAD * n + 1024:
+            self.table = np.full(span, -1, dtype=np.int32 if n < 2**31 else np.int64)
+            self.table[ids - self.first] = np.arange(n, dtype=self.table.dtype)
+
+    def find(self, refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row of each reference, and whether it exists.
+
+        Rows of missing references are 0 (a valid index when the table is not
+        empty); use them only where the returned mask is True.
+        """
+        n = self.n
+        if n == 0:
+            return np.zeros(len(refs), dtype=np.int64), np.zeros(len(refs), dtype=bool)
+        if self.contiguous or self.table is not None:
+            rows = refs - self.first
+            ok = (rows >= 0) & (rows < (n if self.contiguous else len(self.table)))
+            rows[~ok] = 0
+            if self.table is not None:
+                rows = self.table[rows].astype(np.int64)
+                ok &= rows >= 0
+                rows[~ok] = 0
+            return rows, ok
+        order = np.argsort(refs, kind="stable")
+        keys = refs[order]
+        found = np.searchsorted(self.ids, keys)
+        np.minimum(found, n - 1, out=found)
+        hit = self.ids[found] == keys
+        found[~hit] = 0
+        rows = np.empty(len(refs), dtype=np.int64)
+        ok = np.empty(len(refs), dtype=bool)
+        rows[order] = found
+        ok[order] = hit
+        return rows, ok
+
+
+#: Ids spread over at most this many times their count use a lookup table.
+_TABLE_SPREAD = 8
+
+
+def _cycles(f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Label the cycles of the function ``i -> f[i]`` on ``range(len(f))``.
+
+    Pointer jumping: after round k, ``label[i]`` is the least index among
+    ``i, f(i), ..., f^(2^k - 1)(i)`` and ``jump = f^(2^k)``; ``ceil(log2 n)``
+    rounds cover every orbit. When ``f`` is a permutation the rounds stop as
+    soon as no label changes (then every window already holds its cycle's
+    minimum).
+
+    Returns
+    -------
+    label : ndarray
+        For an element on a cycle: the least index of its cycle. (For an
+        element on a tail leading into a cycle, the least index of its orbit.)
+    on_cycle : ndarray of bool
+        Whether the element lies on a cycle (``f`` need not be a permutation).
+    end : ndarray
+        An element of the cycle that the orbit of each element ends in (the
+        element itself when it is on a cycle).
+    """
+    n = len(f)
+    label = np.arange(n, dtype=np.int64)
+    if n == 0:
+        return label, np.zeros(0, dtype=bool), label
+    is_permutation = bool((np.bincount(f, minlength=n) == 1).all())
+    jump = f
+    reach = 1  # jump == f^reach
+    while reach < n:
+        new = np.minimum(label, label[jump])
+        if is_permutation and np.array_equal(new, label):
+            break
+        label = new
+        jump = jump[jump]
+        reach *= 2
+    if is_permutation:
+        return label, np.ones(n, dtype=bool), np.arange(n, dtype=np.int64)
+    # jump = f^m with m >= n: its image is exactly the set of cyclic elements.
+    on_cycle = np.zeros(n, dtype=bool)
+    on_cycle[jump] = True
+    return label, on_cycle, np.where(on_cycle, np.arange(n, dtype=np.int64), jump)
+
+
+def _first_per_group(groups: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """For each group ``0 <= g < n``, the first of its ``values`` (in order), else -1."""
+    out = np.full(n, -1, dtype=np.int64)
+    if len(groups):
+        order = np.argsort(groups, kind="stable")
+        g = groups[order]
+        first = np.ones(len(g), dtype=bool)
+        first[1:] = g[1:] != g[:-1]
+        out[g[first]] = values[order][first]
+    return out
+
+
+def _null(value: int) -> str:
+    return "NULL" if value == -1 else str(value)
+
+
+def _eg(value: int) -> str:
+    return f" (e.g. {value})" if value != -1 else ""
+
+
+def _eg_ids(*values: int) -> tuple[int, ...]:
+    return tuple(v for v in values if v != -1)
+
+
+class _Batch(NamedTuple):
+    """Violations of one kind of failure, as columns; formatted lazily."""
+
+    code: str
+    kind: str
+    sub: int  # tie-break between batches for the same element
+    cols: tuple[np.ndarray, ...]  # cols[0] holds the offending elements' ids
+    fmt: Callable[..., tuple[tuple[int, ...], str]]  # row values -> (ids, message)
+
+
+def _normalized(arrays: TopologyArrays) -> TopologyArrays:
+    """Int64 arrays, each table sorted by id; raises on malformed input."""
+    out = {}
+    for kind, names in _GROUPS:
+        cols = [np.asarray(getattr(arrays, name)) for name in names]
+        for name, col in zip(names, cols):
+            if col.ndim != 1:
+                raise InvalidInputError(f"{name} must be one-dimensional, got shape {col.shape}")
+            if len(col) and not np.issubdtype(col.dtype, np.integer):
+                raise InvalidInputError(f"{name} must hold integers, got {col.dtype}")
+        if len({len(c) for c in cols}) != 1:
+            raise InvalidInputError(f"the {kind} arrays have different lengths: {[len(c) for c in cols]}")
+        cols = [c.astype(np.int64, copy=False) for c in cols]
+        ids = cols[0]
+        if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
+            order = np.argsort(ids, kind="stable")
+            cols = [c[order] for c in cols]
+            ids = cols[0]
+            dup = np.flatnonzero(ids[1:] == ids[:-1])
+            if len(dup):
+                raise InvalidInputError(f"duplicate {kind} id {int(ids[dup[0]])}")
+        out.update(zip(names, cols))
+    return TopologyArrays(**out)
+
+
+# --------------------------------------------------------------------------
+# Checking: the invariants
+
+
+class _Checker:
+    """Shared lookups of one `check_arrays` call; one method per code.
+
+    Each method returns the `_Batch` es of its code. A comparison that would
+    have to follow a reference to a missing element is skipped: that
+    reference is reported once, by `REF`.
+    """
+
+    def __init__(self, a: TopologyArrays, allow_loops: bool, allow_multi_edges: bool) -> None:
+        self.a = a
+        self.allow_loops = allow_loops
+        self.allow_multi_edges = allow_multi_edges
+        self.nH, self.nV, self.nE, self.nP = len(a.he_id), len(a.v_id), len(a.e_id), len(a.p_id)
+        self.hrow = np.arange(self.nH, dtype=np.int64)
+        he, vertex, edge, polygon = _Index(a.he_id), _Index(a.v_id), _Index(a.e_id), _Index(a.p_id)
+        self.nxt, self.nxt_ok = he.find(a.he_next)
+        self.prv, self.prv_ok = he.find(a.he_prev)
+        self.tw, self.tw_ok = he.find(a.he_twin)
+        self.org, self.org_ok = vertex.find(a.he_origin)
+        self.edg, self.edg_ok = edge.find(a.he_edge)
+        self.free = a.he_polygon == -1
+        self.pol, self.pol_ok = polygon.find(a.he_polygon)
+        self.pol_valid = self.pol_ok | self.free  # NULL or an existing polygon
+        self.v_null = a.v_halfedge == -1
+        self.vh, self.vh_ok = he.find(a.v_halfedge)
+        self.vh_ok &= ~self.v_null
+        self.eh, self.eh_ok = he.find(a.e_halfedge)
+        self.ph, self.ph_ok = he.find(a.p_halfedge)
+        del he, vertex, edge, polygon  # the lookup tables
+        # Outgoing half-edges per vertex (those whose origin exists).
+        self.out_count = np.bincount(self.org[self.org_ok], minlength=self.nV)
+
+    def good_vertices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rows of the vertices whose halfedge exists and starts at them, and its row."""
+        i = np.flatnonzero(self.vh_ok)
+        h = self.vh[i]
+        keep = self.org_ok[h] & (self.org[h] == i)
+        return i[keep], h[keep]
+
+    def H_TWIN(self) -> list[_Batch]:
+        he = self.a.he_id
+        i = np.flatnonzero(self.tw_ok)
+        t = self.tw[i]
+        own = i[t == i]
+        j = i[(t != i) & self.tw_ok[t]]
+        tj = self.tw[j]
+        ttj = self.tw[tj]
+        bad = ttj != j
+        j, tj, ttj = j[bad], tj[bad], ttj[bad]
+        return [
+            _Batch(
+                "H_TWIN",
+                "halfedge",
+                0,
+                (he[own],),
+                lambda h: ((h,), f"twin({h}) = {h}: a half-edge cannot be its own twin"),
+            ),
+            _Batch(
+                "H_TWIN",
+                "halfedge",
+                1,
+                (he[j], he[tj], he[ttj]),
+                lambda h, t, tt: ((h, t, tt), f"twin(twin({h})) = {tt} (twin({h}) = {t}), expected {h}"),
+            ),
+        ]
+
+    def H_NEXT_PREV(self) -> list[_Batch]:
+        he = self.a.he_id
+        batches = []
+        directions = [
+            (self.nxt, self.nxt_ok, self.prv, self.prv_ok, "next", "prev"),
+            (self.prv, self.prv_ok, self.nxt, self.nxt_ok, "prev", "next"),
+        ]
+        for sub, (step, step_ok, back, back_ok, s, b) in enumerate(directions):
+            i = np.flatnonzero(step_ok)
+            n = step[i]
+            keep = back_ok[n]
+            i, n = i[keep], n[keep]
+            m = back[n]
+            bad = m != i
+            i, n, m = i[bad], n[bad], m[bad]
+            batches.append(
+                _Batch(
+                    "H_NEXT_PREV",
+                    "halfedge",
+                    sub,
+                    (he[i], he[n], he[m]),
+                    lambda h, x, y, s=s, b=b: ((h, x, y), f"{b}({s}({h})) = {y} ({s}({h}) = {x}), expected {h}"),
+                )
+            )
+        return batches
+
+    def H_ORIGIN(self) -> list[_Batch]:
+        a, he = self.a, self.a.he_id
+        i = np.flatnonzero(self.nxt_ok & self.tw_ok)
+        n, t = self.nxt[i], self.tw[i]
+        keep = self.org_ok[n] & self.org_ok[t]
+        i, n, t = i[keep], n[keep], t[keep]
+        on, ot = a.he_origin[n], a.he_origin[t]
+        bad = on != ot
+        return [
+            _Batch(
+                "H_ORIGIN",
+                "halfedge",
+                0,
+                (he[i[bad]], he[n[bad]], he[t[bad]], on[bad], ot[bad]),
+                lambda h, n, t, on, ot: (
+                    (h, n, t),
+                    f"origin(next({h})) = origin({n}) = vertex {on}, "
+                    f"but origin(twin({h})) = origin({t}) = vertex {ot}",
+                ),
+            )
+        ]
+
+    def H_EDGE(self) -> list[_Batch]:
+        a, he = self.a, self.a.he_id
+        # edge(h) == edge(twin(h))
+        i = np.flatnonzero(self.tw_ok & self.edg_ok)
+        t = self.tw[i]
+        keep = self.edg_ok[t]
+        i, t = i[keep], t[keep]
+        bad = self.edg[i] != self.edg[t]
+        i, t = i[bad], t[bad]
+        twin_batch = _Batch(
+            "H_EDGE",
+            "halfedge",
+            0,
+            (he[i], he[t], a.he_edge[i], a.he_edge[t]),
+            lambda h, t, e, et: ((h, t), f"edge({h}) = {e}, but edge(twin({h})) = edge({t}) = {et}"),
+        )
+        # edge(e.halfedge) == e
+        k = np.flatnonzero(self.eh_ok)
+        h = self.eh[k]
+        keep = self.edg_ok[h]
+        k, h = k[keep], h[keep]
+        bad = self.edg[h] != k
+        k, h = k[bad], h[bad]
+        back_batch = _Batch(
+            "H_EDGE",
+            "edge",
+            1,
+            (a.e_id[k], he[h], a.he_edge[h]),
+            lambda e, h, eh: ((e, h), f"halfedge = {h}, but edge({h}) = {eh}, not {e}"),
+        )
+        # exactly two half-edges per edge; an edge whose half-edge's twin has a
+        # missing edge is left out (that twin may have been meant for it)
+        count = np.bincount(self.edg[self.edg_ok], minlength=self.nE)
+        i = np.flatnonzero(self.edg_ok & self.tw_ok)
+        suspect = np.zeros(self.nE, dtype=bool)
+        suspect[self.edg[i[~self.edg_ok[self.tw[i]]]]] = True
+        k = np.flatnonzero((count != 2) & ~suspect)
+        wanted = np.zeros(self.nE, dtype=bool)
+        wanted[k] = True
+        members = np.flatnonzero(self.edg_ok)
+        members = members[wanted[self.edg[members]]]
+        members = members[np.argsort(self.edg[members], kind="stable")]
+        starts = np.searchsorted(self.edg[members], k)
+        member_ids = he[members]
+
+        def count_fmt(e: int, c: int, s: int) -> tuple[tuple[int, ...], str]:
+            listed = [int(x) for x in member_ids[s : s + min(c, 6)]]
+            shown = ", ".join(map(str, listed)) + (", ..." if c > 6 else "")
+            return (e, *listed), f"has {c} half-edge(s){f' ({shown})' if c else ''}, expected 2"
+
+        count_batch = _Batch("H_EDGE", "edge", 2, (a.e_id[k], count[k], starts), count_fmt)
+        return [twin_batch, back_batch, count_batch]
+
+    def H_POLYGON(self) -> list[_Batch]:
+        a, he = self.a, self.a.he_id
+        i = np.flatnonzero(self.nxt_ok & self.pol_valid)
+        n = self.nxt[i]
+        keep = self.pol_valid[n]
+        i, n = i[keep], n[keep]
+        bad = a.he_polygon[i] != a.he_polygon[n]
+        i, n = i[bad], n[bad]
+        return [
+            _Batch(
+                "H_POLYGON",
+                "halfedge",
+                0,
+                (he[i], he[n], a.he_polygon[i], a.he_polygon[n]),
+                lambda h, n, p, q: (
+                    (h, n),
+                    f"polygon({h}) = {_null(p)}, but polygon(next({h})) = polygon({n}) = {_null(q)}",
+                ),
+            )
+        ]
+
+    def P_LOOP(self) -> list[_Batch]:
+        a, he, nH, nP = self.a, self.a.he_id, self.nH, self.nP
+        # polygon(p.halfedge) == p
+        k = np.flatnonzero(self.ph_ok)
+        h0 = self.ph[k]
+        keep = self.pol_valid[h0]
+        k, h0 = k[keep], h0[keep]
+        bad = a.he_polygon[h0] != a.p_id[k]
+        owner_batch = _Batch(
+            "P_LOOP",
+            "polygon",
+            0,
+            (a.p_id[k[bad]], he[h0[bad]], a.he_polygon[h0[bad]]),
+            lambda p, h, q: ((p, h), f"halfedge = {h}, but polygon({h}) = {_null(q)}"),
+        )
+        k, h0 = k[~bad], h0[~bad]
+        # Walk next only between half-edges of one polygon: a half-edge whose
+        # next lies elsewhere ("exit") becomes a fixed point, and so does one
+        # whose next or next's polygon is missing ("broken", left to REF). On
+        # a valid mesh this needs log2(largest polygon) rounds, not log2(n).
+        i = np.flatnonzero(self.nxt_ok)
+        n = self.nxt[i]
+        broken = np.ones(nH, dtype=bool)
+        broken[i] = ~self.pol_valid[n]
+        same = np.zeros(nH, dtype=bool)
+        same[i] = self.pol_ok[i] & (a.he_polygon[n] == a.he_polygon[i])
+        same &= ~broken
+        exits = self.pol_ok & ~same & ~broken
+        label, on_cycle, end = _cycles(np.where(same, self.nxt, self.hrow))
+        touched = np.zeros(nP, dtype=bool)
+        touched[self.pol[self.pol_ok & broken]] = True
+        keep = ~broken[end[h0]] & ~touched[k]
+        k, h0 = k[keep], h0[keep]
+        x = end[h0]
+        leaves = exits[x]
+        y = self.nxt[x[leaves]]
+        leave_batch = _Batch(
+            "P_LOOP",
+            "polygon",
+            1,
+            (a.p_id[k[leaves]], he[h0[leaves]], he[x[leaves]], he[y], a.he_polygon[y]),
+            lambda p, h, x, y, q: (
+                (p, h, x, y),
+                f"the next-loop from halfedge {h} leaves the polygon: next({x}) = {y} lies in polygon {_null(q)}",
+            ),
+        )
+        k, h0 = k[~leaves], h0[~leaves]
+        stuck = ~on_cycle[h0]
+        stuck_batch = _Batch(
+            "P_LOOP",
+            "polygon",
+            2,
+            (a.p_id[k[stuck]], he[h0[stuck]]),
+            lambda p, h: ((p, h), f"walking next from halfedge {h} never returns to it"),
+        )
+        k, h0 = k[~stuck], h0[~stuck]
+        # the loop of h0 holds only half-edges of p: does it hold all of them?
+        size = np.bincount(label[on_cycle], minlength=nH)
+        loop_size = size[label[h0]]
+        members = np.bincount(self.pol[self.pol_ok], minlength=nP)
+        bad = loop_size != members[k]
+        k, h0, loop_size = k[bad], h0[bad], loop_size[bad]
+        loop_of = np.full(nP, -1, dtype=np.int64)
+        loop_of[k] = label[h0]
+        j = np.flatnonzero(self.pol_ok)
+        q = self.pol[j]
+        off = (loop_of[q] >= 0) & ~(on_cycle[j] & (label[j] == loop_of[q]))
+        stray = _first_per_group(q[off], he[j[off]], nP)
+        loop_batch = _Batch(
+            "P_LOOP",
+            "polygon",
+            3,
+            (a.p_id[k], he[h0], loop_size, members[k], stray[k]),
+            lambda p, h, size, mine, x: (
+                (p, h, *_eg_ids(x)),
+                f"the next-loop from halfedge {h} has {size} half-edge(s), but polygon {p} has {mine}; "
+                f"{mine - size} not on the loop{_eg(x)}",
+            ),
+        )
+        return [owner_batch, leave_batch, stuck_batch, loop_batch]
+
+    def V_HALFEDGE(self) -> list[_Batch]:
+        a, he = self.a, self.a.he_id
+        k = np.flatnonzero(self.v_null & (self.out_count > 0))
+        wanted = np.zeros(self.nV, dtype=bool)
+        wanted[k] = True
+        j = np.flatnonzero(self.org_ok)
+        j = j[wanted[self.org[j]]]
+        example = _first_per_group(self.org[j], he[j], self.nV)
+        null_batch = _Batch(
+            "V_HALFEDGE",
+            "vertex",
+            0,
+            (a.v_id[k], self.out_count[k], example[k]),
+            lambda v, c, x: ((v, x), f"halfedge is NULL, but {c} half-edge(s) start at vertex {v} (e.g. {x})"),
+        )
+        k = np.flatnonzero(self.vh_ok)
+        h = self.vh[k]
+        keep = self.org_ok[h]
+        k, h = k[keep], h[keep]
+        bad = self.org[h] != k
+        k, h = k[bad], h[bad]
+        origin_batch = _Batch(
+            "V_HALFEDGE",
+            "vertex",
+            1,
+            (a.v_id[k], he[h], a.he_origin[h], self.out_count[k]),
+            lambda v, h, o, c: (
+                (v, h),
+                f"halfedge = {h}, but origin({h}) = vertex {o}" + ("" if c else f"; no half-edge starts at vertex {v}"),
+            ),
+        )
+        return [null_batch, origin_batch]
+
+    def V_ROTATION(self) -> list[_Batch]:
+        a, he, nH, nV = self.a, self.a.he_id, self.nH, self.nV
+        # r(h) = next(twin(h)), walked only between half-edges of one origin:
+        # one whose r starts elsewhere ("exit") becomes a fixed point, and so
+        # does one with a missing twin, next(twin) or origin ("broken", left
+        # to REF). On a valid mesh this needs log2(highest degree) rounds.
+        i = np.flatnonzero(self.tw_ok & self.org_ok)
+        t = self.tw[i]
+        i, t = i[self.nxt_ok[t]], t[self.nxt_ok[t]]
+        r = self.nxt[t]
+        i, r = i[self.org_ok[r]], r[self.org_ok[r]]
+        broken = np.ones(nH, dtype=bool)
+        broken[i] = False
+        rot = self.hrow.copy()
+        rot[i] = r
+        same = np.zeros(nH, dtype=bool)
+        same[i] = self.org[r] == self.org[i]
+        exits = ~broken & ~same
+        label, on_cycle, end = _cycles(np.where(same, rot, self.hrow))
+        k, h0 = self.good_vertices()
+        touched = np.zeros(nV, dtype=bool)
+        touched[self.org[self.org_ok & broken]] = True
+        keep = ~broken[end[h0]] & ~touched[k]
+        k, h0 = k[keep], h0[keep]
+        x = end[h0]
+        leaves = exits[x]
+        y = rot[x[leaves]]
+        leave_batch = _Batch(
+            "V_ROTATION",
+            "vertex",
+            0,
+            (a.v_id[k[leaves]], he[h0[leaves]], he[x[leaves]], he[y], a.he_origin[y]),
+            lambda v, h, x, y, w: (
+                (v, h, x, y),
+                f"rotating from halfedge {h} leaves the vertex: next(twin({x})) = {y} starts at vertex {w}",
+            ),
+        )
+        k, h0 = k[~leaves], h0[~leaves]
+        stuck = ~on_cycle[h0]
+        stuck_batch = _Batch(
+            "V_ROTATION",
+            "vertex",
+            1,
+            (a.v_id[k[stuck]], he[h0[stuck]]),
+            lambda v, h: ((v, h), f"rotating (h -> next(twin(h))) from halfedge {h} never returns to it"),
+        )
+        k, h0 = k[~stuck], h0[~stuck]
+        # the rotation from h0 holds only outgoing half-edges of v: all of them?
+        size = np.bincount(label[on_cycle], minlength=nH)
+        ring_size = size[label[h0]]
+        out = self.out_count[k]
+        bad = ring_size != out
+        k, h0, ring_size = k[bad], h0[bad], ring_size[bad]
+        ring_of = np.full(nV, -1, dtype=np.int64)
+        ring_of[k] = label[h0]
+        j = np.flatnonzero(self.org_ok)
+        w = self.org[j]
+        off = (ring_of[w] >= 0) & ~(on_cycle[j] & (label[j] == ring_of[w]))
+        missed = _first_per_group(w[off], he[j[off]], nV)
+        ring_batch = _Batch(
+            "V_ROTATION",
+            "vertex",
+            2,
+            (a.v_id[k], he[h0], ring_size, self.out_count[k], missed[k]),
+            lambda v, h, size, out, x: (
+                (v, h, *_eg_ids(x)),
+                f"rotating from halfedge {h} visits {size} half-edge(s), but {out} start at vertex {v}; "
+                f"{out - size} not visited{_eg(x)}",
+            ),
+        )
+        return [leave_batch, stuck_batch, ring_batch]
+
+    def V_BOUNDARY(self) -> list[_Batch]:
+        a, he = self.a, self.a.he_id
+        k, h0 = self.good_vertices()
+        free_out = self.org_ok & self.free
+        free_count = np.bincount(self.org[free_out], minlength=self.nV)
+        bad = (free_count[k] > 0) & ~self.free[h0]
+        k, h0 = k[bad], h0[bad]
+        wanted = np.zeros(self.nV, dtype=bool)
+        wanted[k] = True
+        j = np.flatnonzero(free_out)
+        j = j[wanted[self.org[j]]]
+        example = _first_per_group(self.org[j], he[j], self.nV)
+        return [
+            _Batch(
+                "V_BOUNDARY",
+                "vertex",
+                0,
+                (a.v_id[k], he[h0], a.he_polygon[h0], free_count[k], example[k]),
+                lambda v, h, p, c, x: (
+                    (v, h, x),
+                    f"halfedge = {h} lies in polygon {p}, but {c} free half-edge(s) start at vertex {v} (e.g. {x})",
+                ),
+            )
+        ]
+
+    def REF(self) -> list[_Batch]:
+        a = self.a
+        fields = [
+            ("halfedge", a.he_id, "origin", a.he_origin, self.org_ok, "vertex"),
+            ("halfedge", a.he_id, "next", a.he_next, self.nxt_ok, "halfedge"),
+            ("halfedge", a.he_id, "prev", a.he_prev, self.prv_ok, "halfedge"),
+            ("halfedge", a.he_id, "twin", a.he_twin, self.tw_ok, "halfedge"),
+            ("halfedge", a.he_id, "edge", a.he_edge, self.edg_ok, "edge"),
+            ("halfedge", a.he_id, "polygon", a.he_polygon, self.pol_valid, "polygon"),
+            ("vertex", a.v_id, "halfedge", a.v_halfedge, self.vh_ok | self.v_null, "halfedge"),
+            ("edge", a.e_id, "halfedge", a.e_halfedge, self.eh_ok, "halfedge"),
+            ("polygon", a.p_id, "halfedge", a.p_halfedge, self.ph_ok, "halfedge"),
+        ]
+        batches = []
+        for sub, (kind, ids, field, refs, ok, target) in enumerate(fields):
+            bad = np.flatnonzero(~ok)
+            batches.append(
+                _Batch(
+                    "REF",
+                    kind,
+                    sub,
+                    (ids[bad], refs[bad]),
+                    lambda x, ref, field=field, target=target: (
+                        (x, ref),
+                        f"{field} = {ref}, but there is no {target} {ref} in this mesh",
+                    ),
+                )
+            )
+        return batches
+
+    def POLICY(self) -> list[_Batch]:
+        a = self.a
+        if self.allow_loops and self.allow_multi_edges:
+            return []
+        # the end vertices of each edge: origins of e.halfedge and of its twin
+        k = np.flatnonzero(self.eh_ok)
+        h = self.eh[k]
+        keep = self.tw_ok[h] & self.org_ok[h]
+        k, h = k[keep], h[keep]
+        t = self.tw[h]
+        keep = self.org_ok[t]
+        k, h, t = k[keep], h[keep], t[keep]
+        u, w = a.he_origin[h], a.he_origin[t]
+        batches = []
+        if not self.allow_loops:
+            loop = u == w
+            batches.append(
+                _Batch(
+                    "POLICY",
+                    "edge",
+                    0,
+                    (a.e_id[k[loop]], u[loop]),
+                    lambda e, v: ((e, v), f"is a self-loop at vertex {v}, but the mesh does not allow loops"),
+                )
+            )
+        if not self.allow_multi_edges:
+            lo, hi, eid = np.minimum(u, w), np.maximum(u, w), a.e_id[k]
+            order = np.lexsort((eid, hi, lo))
+            lo, hi, eid = lo[order], hi[order], eid[order]
+            starts = np.ones(len(eid), dtype=bool)
+            starts[1:] = (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])
+            first = eid[np.maximum.accumulate(np.where(starts, np.arange(len(eid)), 0))] if len(eid) else eid
+            extra = ~starts
+            batches.append(
+                _Batch(
+                    "POLICY",
+                    "edge",
+                    1,
+                    (eid[extra], first[extra], lo[extra], hi[extra]),
+                    lambda e, f, x, y: (
+                        (e, f),
+                        f"joins vertices {x} and {y} like edge {f}, but the mesh does not allow parallel edges",
+                    ),
+                )
+            )
+        return batches
+
+
+def _emit(batches: list[_Batch], room: int | None) -> list[Violation]:
+    """The violations of one code, ordered by id, at most ``room`` of them."""
+    batches = [b for b in batches if len(b.cols[0])]
+    if not batches:
+        return []
+    ids = np.concatenate([b.cols[0] for b in batches])
+    kind = np.concatenate([np.full(len(b.cols[0]), _KIND_RANK[b.kind]) for b in batches])
+    sub = np.concatenate([np.full(len(b.cols[0]), b.sub) for b in batches])
+    src = np.concatenate([np.full(len(b.cols[0]), i) for i, b in enumerate(batches)])
+    row = np.concatenate([np.arange(len(b.cols[0])) for b in batches])
+    order = np.lexsort((row, sub, kind, ids))
+    if room is not None:
+        order = order[:room]
+    out = []
+    for s, r in zip(src[order].tolist(), row[order].tolist()):
+        b = batches[s]
+        element_ids, message = b.fmt(*(int(c[r]) for c in b.cols))
+        out.append(Violation(b.code, b.kind, tuple(int(x) for x in element_ids), message))
+    return out
+
+
+def check_arrays(
+    arrays: TopologyArrays,
+    *,
+    allow_loops: bool = True,
+    allow_multi_edges: bool = True,
+    limit: int | None = None,
+) -> list[Violation]:
+    """Check every invariant on a mesh's topology arrays, set-based.
+
+    Parameters
+    ----------
+    arrays : TopologyArrays
+        The mesh's tables (see `load_arrays`). Tables not sorted by id are
+        sorted first.
+    allow_loops, allow_multi_edges : bool, optional
+        The mesh's policy; ``POLICY`` reports self-loops / parallel edges
+        (every edge beyond the lowest-id one between the same two vertices)
+        where they are not allowed.
+    limit : int or None, optional
+        Return at most this many violations (the first ones in report order);
+        None returns them all. Checks after the limit is reached are skipped.
+
+    Returns
+    -------
+    list of Violation
+        Empty when the topology is valid. Ordered by the code's position in
+        `CODES`, then by the offending element's id (then kind, then reason).
+
+    Raises
+    ------
+    hestore.InvalidInputError
+        If arrays of one table differ in length, are not 1-d integer arrays,
+        or a table holds an id twice.
+
+    Examples
+    --------
+    A triangle (polygon 0) with its boundary loop of free half-edges; half-edges
+    ``2e`` and ``2e + 1`` make edge ``e``:
+
+    >>> import numpy as np
+    >>> a = lambda *v: np.array(v, dtype=np.int64)
+    >>> tri = TopologyArrays(
+    ...     he_id=a(0, 1, 2, 3, 4, 5), he_origin=a(0, 1, 1, 2, 2, 0),
+    ...     he_next=a(2, 5, 4, 1, 0, 3), he_prev=a(4, 3, 0, 5, 2, 1),
+    ...     he_twin=a(1, 0, 3, 2, 5, 4), he_edge=a(0, 0, 1, 1, 2, 2),
+    ...     he_polygon=a(0, -1, 0, -1, 0, -1),
+    ...     v_id=a(0, 1, 2), v_halfedge=a(5, 1, 3),
+    ...     e_id=a(0, 1, 2), e_halfedge=a(0, 2, 4), p_id=a(0), p_halfedge=a(0))
+    >>> check_arrays(tri)
+    []
+    >>> for v in check_arrays(tri._replace(v_halfedge=a(0, 1, 3))):
+    ...     print(v)
+    V_BOUNDARY vertex 0: halfedge = 0 lies in polygon 0, but 1 free half-edge(s) start at vertex 0 (e.g. 5)
+    >>> swapped = tri._replace(he_next=a(2, 3, 4, 1, 0, 5))  # next(1) <-> next(5)
+    >>> for v in check_arrays(swapped, limit=2):
+    ...     print(v)
+    H_NEXT_PREV halfedge 1: prev(next(1)) = 5 (next(1) = 3), expected 1
+    H_NEXT_PREV halfedge 3: next(prev(3)) = 5 (prev(3) = 5), expected 3
+    >>> sorted({v.code for v in check_arrays(swapped)})
+    ['H_NEXT_PREV', 'H_ORIGIN', 'V_ROTATION']
+    """
+    if limit is not None:
+        limit = int(limit)
+        if limit < 0:
+            raise InvalidInputError(f"limit must be None or >= 0, got {limit}")
+    checker = _Checker(_normalized(arrays), bool(allow_loops), bool(allow_multi_edges))
+    result: list[Violation] = []
+    for code in CODES:
+        room = None if limit is None else limit - len(result)
+        if room == 0:
+            break
+        result.extend(_emit(getattr(checker, code)(), room))
+    return result
+
+
+def check(mesh: Any) -> list[Violation]:
+    """Check a stored mesh: what `Mesh.check` returns.
+
+    Reads the mesh's tables with `load_arrays` on a connection of the mesh's
+    store (after its pending writes are flushed) and checks them with
+    `check_arrays` under the mesh's policy.
+
+    Parameters
+    ----------
+    mesh : hestore.Mesh
+        The mesh to check.
+
+    Returns
+    -------
+    list of Violation
+        Empty when every invariant holds.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> mesh = store.create_mesh("m")
+    >>> check(mesh)
+    []
+    >>> store.close()
+    """
+    with mesh._store._read() as conn:
+        arrays = load_arrays(conn, mesh._id)
+    return check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)

@@ -1,0 +1,355 @@
+"""Concurrency (SPEC §4): several processes editing one database.
+
+Real processes (``multiprocessing`` with the ``spawn`` start method), each
+with its own `hestore.open` on the test's database. Every wait is bounded:
+events and queues are waited on with timeouts, processes are joined with
+timeouts and terminated if they overstay, so a broken lock never hangs the
+test run.
+
+* Writers to the same mesh are serialized: workers adding triangles to one
+  mesh in small transactions (retrying on `StoreBusyError`) lose nothing, and
+  the revision counts exactly the committed transactions.
+* A writer that cannot get its lock in time gets `StoreBusyError` (after about
+  its ``busy_timeout``) and changes nothing; once the holder commits it succeeds.
+* PostgreSQL: writers to different meshes are not serialized, and a lock
+  timeout inside a block leaves the block usable. SQLite has one writer per
+  database, so there a writer to another mesh is refused as busy too.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import queue
+import random
+import time
+import traceback
+
+import pytest
+
+import hestore
+from hestore.errors import StoreBusyError
+
+from helpers import dump
+
+CTX = multiprocessing.get_context("spawn")
+
+#: Upper bound for anything a child process is waited for (start-up included).
+WAIT = 90.0
+
+
+# --------------------------------------------------------------------------
+# Child processes (module level, so that "spawn" can import them)
+
+
+def _adder(url: str, worker: int, k: int, start, results) -> None:
+    """Add ``k`` small transactions to mesh "m"; report (worker, commits, busy, added)."""
+    try:
+        store = hestore.open(url, busy_timeout=5.0)
+        mesh = store.mesh("m")
+        hub = mesh.vertex(0)
+        start.wait(timeout=WAIT)  # all workers begin editing together
+        rng = random.Random(worker)
+        commits = busy = 0
+        added = {"vertices": 0, "edges": 0, "polygons": 0}
+        deadline = time.monotonic() + WAIT - 10
+        for i in range(k):
+            kind = i % 3
+            while True:
+                try:
+                    if kind == 0:  # a triangle of new vertices, in a block
+                        with store.transaction():
+                            vs = [mesh.add_vertex((worker, i, j)) for j in range(3)]
+                            mesh.add_polygon(vs)
+                        delta = (3, 3, 1)
+                    elif kind == 1:  # a triangle on the shared hub vertex, in a block
+                        with store.transaction():
+                            a, b = mesh.add_vertex((worker, i, 10)), mesh.add_vertex((worker, i, 11))
+                            mesh.add_polygon([hub, a, b])
+                        delta = (2, 3, 1)
+                    else:  # one call outside a block: its own transaction
+                        mesh.add_vertex((worker, i, -1))
+                        delta = (1, 0, 0)
+                    break
+                except StoreBusyError:
+                    busy += 1
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(rng.uniform(0.001, 0.02))
+            commits += 1
+            for key, d in zip(("vertices", "edges", "polygons"), delta):
+                added[key] += d
+        store.close()
+        results.put(("ok", worker, commits, busy, added))
+    except BaseException:
+        results.put(("error", worker, traceback.format_exc()))
+
+
+def _holder(url: str, mesh_name: str, held, release, results) -> None:
+    """Open a block, edit ``mesh_name``, signal ``held``, wait for ``release``, commit."""
+    try:
+        store = hestore.open(url)
+        mesh = store.mesh(mesh_name)
+        with store.transaction():
+            a, b, c = (mesh.add_vertex() for _ in range(3))
+            mesh.add_polygon([a, b, c])
+            held.set()
+            if not release.wait(WAIT):
+                raise TimeoutError("the test never released the holder")
+        store.close()
+        results.put(("committed", None))
+    except BaseException:
+        results.put(("error", traceback.format_exc()))
+
+
+def _run(target, *args) -> multiprocessing.Process:
+    p = CTX.Process(target=target, args=args, daemon=True)
+    p.start()
+    return p
+
+
+def _stop(processes) -> None:
+    for p in processes:
+        p.join(timeout=30)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+            p.join(timeout=5)
+
+
+def _get(results, timeout: float = WAIT):
+    try:
+        return results.get(timeout=timeout)
+    except queue.Empty:
+        pytest.fail(f"a child process reported nothing within {timeout} s")
+
+
+# --------------------------------------------------------------------------
+# Many writers, one mesh
+
+
+@pytest.mark.parametrize("n_workers, k", [(2, 30), (3, 30)])
+def test_concurrent_writers_to_one_mesh_lose_nothing(db_url, n_workers, k):
+    with hestore.open(db_url) as store:
+        mesh = store.create_mesh("m")
+        hub = mesh.add_vertex((0, 0, 0))
+        assert hub.id == 0
+        rev0 = mesh.revision
+    results = CTX.Queue()
+    start = CTX.Barrier(n_workers)
+    procs = [_run(_adder, db_url, w, k, start, results) for w in range(n_workers)]
+    try:
+        reports = [_get(results) for _ in procs]
+    finally:
+        _stop(procs)
+    errors = [r for r in reports if r[0] != "ok"]
+    assert not errors, "\n".join(r[2] for r in errors)
+    assert all(p.exitcode == 0 for p in procs)
+
+    commits = sum(r[2] for r in reports)
+    assert commits == n_workers * k
+    added = {key: sum(r[4][key] for r in reports) for key in ("vertices", "edges", "polygons")}
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("m")
+        counts = mesh.counts()
+        assert counts.vertices == 1 + added["vertices"]
+        assert counts.edges == added["edges"]
+        assert counts.halfedges == 2 * added["edges"]
+        assert counts.polygons == added["polygons"]
+        assert mesh.revision == rev0 + commits
+        assert mesh.check() == []
+        # every hub triangle is its own fan around the hub
+        hub = mesh.vertex(0)
+        hub_triangles = n_workers * len([i for i in range(k) if i % 3 == 1])
+        assert len(hub.polygons()) == hub_triangles
+        assert hub.degree == 2 * hub_triangles
+        # ids are unique (the tables' keys) and dense: no id handed out twice, none lost
+        d = dump(store)
+        vertex_ids = sorted(r[1] for r in d["vertices"] if r[0] == mesh._id)
+        assert vertex_ids == list(range(len(vertex_ids)))
+        polygon_ids = sorted(r[1] for r in d["polygons"] if r[0] == mesh._id)
+        assert polygon_ids == list(range(len(polygon_ids)))
+        # each worker's vertices are all there (x = worker number)
+        xs = [r[3] for r in d["vertices"] if r[0] == mesh._id and r[1] != 0]
+        for r in reports:
+            assert xs.count(float(r[1])) == r[4]["vertices"]
+
+
+# --------------------------------------------------------------------------
+# Lock behaviour
+
+
+def _hold(db_url, mesh_name="m"):
+    """Start a holder on ``mesh_name``; returns (process, release event, results)."""
+    held, release = CTX.Event(), CTX.Event()
+    results = CTX.Queue()
+    p = _run(_holder, db_url, mesh_name, held, release, results)
+    if not held.wait(WAIT):
+        release.set()
+        _stop([p])
+        try:
+            report = results.get(timeout=1)
+        except queue.Empty:
+            report = None
+        pytest.fail(f"the holder process never got its lock: {report}")
+    return p, release, results
+
+
+def _setup(db_url, *names):
+    with hestore.open(db_url) as store:
+        for name in names:
+            m = store.create_mesh(name)
+            with store.transaction():  # revision 1
+                m.add_edge(m.add_vertex(), m.add_vertex())
+
+
+def test_writer_to_a_locked_mesh_gets_store_busy_quickly(db_url):
+    _setup(db_url, "m")
+    committed = dump(db_url)
+    p, release, results = _hold(db_url, "m")
+    try:
+        with hestore.open(db_url, busy_timeout=0.3) as b:
+            m = b.mesh("m")
+            # reads are not blocked, and see the committed state
+            assert m.counts().edges == 1
+            for attempt in (
+                lambda: m.add_vertex(),
+                lambda: m.add_edge(m.vertex(0), m.vertex(1)),
+                lambda: m.remove_vertex(m.vertex(0)),
+            ):
+                t0 = time.monotonic()
+                with pytest.raises(StoreBusyError):
+                    attempt()
+                elapsed = time.monotonic() - t0
+                assert 0.2 <= elapsed < 5.0, f"StoreBusyError after {elapsed:.2f} s with busy_timeout=0.3"
+                assert dump(db_url) == committed
+                assert not b.in_transaction
+            t0 = time.monotonic()
+            with pytest.raises(StoreBusyError):
+                with b.transaction():
+                    m.add_vertex()
+            assert time.monotonic() - t0 < 5.0
+            assert not b.in_transaction
+            assert dump(db_url) == committed
+            assert m.revision == 1
+
+            release.set()
+            assert _get(results) == ("committed", None)
+            p.join(timeout=30)
+            # the holder's edit is there, and now B gets the lock
+            assert m.counts().polygons == 1
+            v = m.add_vertex()
+            with b.transaction():
+                m.add_edge(v, m.vertex(0))
+            assert m.counts().vertices == 2 + 3 + 1
+            assert m.revision == 1 + 1 + 2
+            assert m.check() == []
+    finally:
+        release.set()
+        _stop([p])
+    assert p.exitcode == 0
+
+
+def test_writer_to_another_mesh_while_one_is_locked(db_url, backend):
+    _setup(db_url, "m", "n")
+    p, release, results = _hold(db_url, "m")
+    try:
+        with hestore.open(db_url, busy_timeout=0.3) as b:
+            n = b.mesh("n")
+            if backend == "postgresql":
+                # Writers to different meshes are not serialized: no waiting at all.
+                t0 = time.monotonic()
+                v = n.add_vertex()
+                with b.transaction():
+                    n.add_edge(v, n.vertex(0))
+                    n.add_polygon([v, n.vertex(0), n.vertex(1)])
+                assert time.monotonic() - t0 < 5.0
+                assert n.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+                assert n.revision == 1 + 2
+            else:
+                # SQLite has a single writer per database (BEGIN IMMEDIATE takes the
+                # database's write lock), so a writer to *any* mesh waits for the
+                # holder and, after its busy_timeout, gets StoreBusyError.
+                before = dump(db_url)
+                with pytest.raises(StoreBusyError):
+                    n.add_vertex()
+                with pytest.raises(StoreBusyError):
+                    with b.transaction():
+                        n.add_vertex()
+                assert dump(db_url) == before
+            release.set()
+            assert _get(results) == ("committed", None)
+            p.join(timeout=30)
+            n.add_vertex()
+            assert b.mesh("m").counts().polygons == 1
+            assert b.mesh("m").check() == [] and n.check() == []
+    finally:
+        release.set()
+        _stop([p])
+    assert p.exitcode == 0
+
+
+@pytest.mark.postgresql
+def test_store_busy_inside_a_block_leaves_the_block_usable(db_url, backend):
+    if backend != "postgresql":
+        pytest.skip("SQLite takes its single write lock when the block begins: there is no per-mesh lock to miss")
+    _setup(db_url, "m", "n")
+    with hestore.open(db_url) as s:
+        m_id = s.mesh("m")._id
+    committed_m = [r for r in dump(db_url)["vertices"] if r[0] == m_id]
+    p, release, results = _hold(db_url, "m")
+    try:
+        with hestore.open(db_url, busy_timeout=0.3) as b:
+            m, n = b.mesh("m"), b.mesh("n")
+            with b.transaction():
+                v = n.add_vertex()  # an edit before the refused lock ...
+                with pytest.raises(StoreBusyError):
+                    m.add_vertex()
+                assert b.in_transaction
+                with pytest.raises(StoreBusyError):  # ... asking again is refused again ...
+                    m.add_edge(m.vertex(0), m.vertex(1))
+                w = n.add_vertex()  # ... and the block goes on
+                n.add_edge(v, w)
+                assert n.counts().vertices == 4
+            assert n.counts() == hestore.mesh.Counts(vertices=4, halfedges=4, edges=2, polygons=0)
+            assert n.revision == 2
+            assert n.check() == []
+            # a block whose first edit is the refused one also goes on
+            with b.transaction():
+                with pytest.raises(StoreBusyError):
+                    m.add_vertex()
+                n.add_vertex()
+            assert n.counts().vertices == 5 and n.revision == 3
+            # nothing reached m while A holds it
+            release.set()
+            assert _get(results) == ("committed", None)
+            p.join(timeout=30)
+            after_m = [r for r in dump(db_url)["vertices"] if r[0] == m_id]
+            assert len(after_m) == len(committed_m) + 3  # only the holder's triangle
+            assert m.revision == 2
+            assert m.check() == []
+    finally:
+        release.set()
+        _stop([p])
+    assert p.exitcode == 0
+
+
+def test_reader_during_a_writers_block_sees_committed_state(db_url):
+    """Another process's open block is invisible, then visible in full after its commit."""
+    _setup(db_url, "m")
+    committed = dump(db_url)
+    p, release, results = _hold(db_url, "m")
+    try:
+        with hestore.open(db_url, busy_timeout=0.3) as b:
+            m = b.mesh("m")
+            assert dump(b) == committed
+            assert m.counts() == hestore.mesh.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
+            assert m.check() == []
+            assert m.revision == 1
+            release.set()
+            assert _get(results) == ("committed", None)
+            p.join(timeout=30)
+            assert m.counts() == hestore.mesh.Counts(vertices=5, halfedges=8, edges=4, polygons=1)
+            assert m.revision == 2
+    finally:
+        release.set()
+        _stop([p])
