@@ -232,7 +232,7 @@ def _fmt_counts(calls: int, rows: int, by_kind: dict, per: int) -> str:
         if kind in by_kind:
             c, r = by_kind[kind]
             parts.append(f"{kind} {c / per:.3g}" + (f" ({r / per:.3g} rows)" if r != c else ""))
-    return f"{calls / per:.3g} calls, {rows / per:.3g} rows: " + ", ".join(parts)
+    return f"{calls / per:.3g} driver calls: " + ", ".join(parts)
 
 
 def _diff(after, before):
@@ -347,12 +347,12 @@ def measure_commits(store, mesh, model, rng, n: int, warm: int, counter=None):
     """One-polygon transactions end to end, and their part after the last edit."""
     total, tail = [], []
     acc = [0, 0, {}]
-    for k in range(warm + n):
-        a, b = model.boundary.choice(rng)
-        A, B, pos = hestore.Vertex(mesh, a), hestore.Vertex(mesh, b), model.new_position(a, b)
-        gc.collect()
-        gc.disable()
-        try:
+    gc.collect()
+    gc.disable()  # for the whole loop: a full collection per transaction would dominate the run
+    try:
+        for k in range(warm + n):
+            a, b = model.boundary.choice(rng)
+            A, B, pos = hestore.Vertex(mesh, a), hestore.Vertex(mesh, b), model.new_position(a, b)
             before = counter.snapshot() if counter else None
             t0 = pc()
             with store.transaction():
@@ -362,12 +362,12 @@ def measure_commits(store, mesh, model, rng, n: int, warm: int, counter=None):
             t2 = pc()
             if counter:
                 _accumulate(acc, _diff(counter.snapshot(), before))
-        finally:
-            gc.enable()
-        model.add_triangle(a, b, c.id, pos, p.id)
-        if k >= warm:
-            total.append(t2 - t0)
-            tail.append(t2 - t1)
+            model.add_triangle(a, b, c.id, pos, p.id)
+            if k >= warm:
+                total.append(t2 - t0)
+                tail.append(t2 - t1)
+    finally:
+        gc.enable()
     return total, tail, acc
 
 
@@ -602,8 +602,9 @@ def report(args, builds, results, skipped) -> None:
                 verdict,
             ])
         rows.append([""] * 10)
-    print_table(["backend", "mesh", "figure", "n", "median", "p90", "target", "floor", "÷floor", "verdict"],
-                rows[:-1], "lrlrrrrrrl")
+    if rows:
+        print_table(["backend", "mesh", "figure", "n", "median", "p90", "target", "floor", "÷floor", "verdict"],
+                    rows[:-1], "lrlrrrrrrl")
     if results:
         print()
         print("Growth with the mesh (median at each size; ratio = largest size / smallest size):")
@@ -627,7 +628,8 @@ def report(args, builds, results, skipped) -> None:
     sql = [(r.backend, r.size, w, c) for r in results for w, c in r.sql]
     if sql:
         print()
-        print("SQL sent on hestore's driver cursor (counted in separate, untimed passes):")
+        print("SQL sent on hestore's driver cursor, per operation (counted in separate, untimed passes; an")
+        print("executemany is one call, its parameter sets are 'rows'; TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE/ROLLBACK):")
         print_table(["backend", "mesh", "what", "statements"], [[b, f"{s:,}", w, c] for b, s, w, c in sql], "lrll")
     for s in skipped:
         print(f"SKIPPED {s}")

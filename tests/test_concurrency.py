@@ -21,13 +21,14 @@ from __future__ import annotations
 import multiprocessing
 import queue
 import random
+import threading
 import time
 import traceback
 
 import pytest
 
 import hestore
-from hestore.errors import StoreBusyError
+from hestore.errors import MeshNotFoundError, StoreBusyError
 
 from helpers import dump
 
@@ -84,14 +85,17 @@ def _adder(url: str, worker: int, k: int, start, results) -> None:
         results.put(("error", worker, traceback.format_exc()))
 
 
-def _holder(url: str, mesh_name: str, held, release, results) -> None:
-    """Open a block, edit ``mesh_name``, signal ``held``, wait for ``release``, commit."""
+def _holder(url: str, mesh_name: str, held, release, results, action: str = "edit") -> None:
+    """Open a block, edit (or delete) ``mesh_name``, signal ``held``, wait for ``release``, commit."""
     try:
         store = hestore.open(url)
         mesh = store.mesh(mesh_name)
         with store.transaction():
-            a, b, c = (mesh.add_vertex() for _ in range(3))
-            mesh.add_polygon([a, b, c])
+            if action == "delete":
+                store.delete_mesh(mesh_name)
+            else:
+                a, b, c = (mesh.add_vertex() for _ in range(3))
+                mesh.add_polygon([a, b, c])
             held.set()
             if not release.wait(WAIT):
                 raise TimeoutError("the test never released the holder")
@@ -99,6 +103,35 @@ def _holder(url: str, mesh_name: str, held, release, results) -> None:
         results.put(("committed", None))
     except BaseException:
         results.put(("error", traceback.format_exc()))
+
+
+def _cross(url: str, first: str, second: str, ready, results) -> None:
+    """In one block: edit ``first``, wait until the partner has edited its first mesh, edit ``second``.
+
+    Two of these with opposite orders deadlock on PostgreSQL; the loser gets
+    `StoreBusyError` and retries its whole block.
+    """
+    try:
+        store = hestore.open(url, busy_timeout=20.0)
+        a, b = store.mesh(first), store.mesh(second)
+        attempts = 0
+        deadline = time.monotonic() + WAIT - 10
+        while True:
+            attempts += 1
+            try:
+                with store.transaction():
+                    a.add_vertex((attempts, 0, 0))
+                    if attempts == 1:
+                        ready.wait(timeout=30)  # both hold their first mesh now
+                    b.add_vertex((attempts, 1, 0))
+                break
+            except StoreBusyError:
+                if time.monotonic() > deadline:
+                    raise
+        store.close()
+        results.put(("ok", first, attempts))
+    except BaseException:
+        results.put(("error", first, traceback.format_exc()))
 
 
 def _run(target, *args) -> multiprocessing.Process:
@@ -178,11 +211,11 @@ def test_concurrent_writers_to_one_mesh_lose_nothing(db_url, n_workers, k):
 # Lock behaviour
 
 
-def _hold(db_url, mesh_name="m"):
+def _hold(db_url, mesh_name="m", action="edit"):
     """Start a holder on ``mesh_name``; returns (process, release event, results)."""
     held, release = CTX.Event(), CTX.Event()
     results = CTX.Queue()
-    p = _run(_holder, db_url, mesh_name, held, release, results)
+    p = _run(_holder, db_url, mesh_name, held, release, results, action)
     if not held.wait(WAIT):
         release.set()
         _stop([p])
@@ -263,7 +296,7 @@ def test_writer_to_another_mesh_while_one_is_locked(db_url, backend):
                     n.add_edge(v, n.vertex(0))
                     n.add_polygon([v, n.vertex(0), n.vertex(1)])
                 assert time.monotonic() - t0 < 5.0
-                assert n.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+                assert n.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
                 assert n.revision == 1 + 2
             else:
                 # SQLite has a single writer per database (BEGIN IMMEDIATE takes the
@@ -310,7 +343,7 @@ def test_store_busy_inside_a_block_leaves_the_block_usable(db_url, backend):
                 w = n.add_vertex()  # ... and the block goes on
                 n.add_edge(v, w)
                 assert n.counts().vertices == 4
-            assert n.counts() == hestore.mesh.Counts(vertices=4, halfedges=4, edges=2, polygons=0)
+            assert n.counts() == hestore.Counts(vertices=4, halfedges=4, edges=2, polygons=0)
             assert n.revision == 2
             assert n.check() == []
             # a block whose first edit is the refused one also goes on
@@ -342,14 +375,74 @@ def test_reader_during_a_writers_block_sees_committed_state(db_url):
         with hestore.open(db_url, busy_timeout=0.3) as b:
             m = b.mesh("m")
             assert dump(b) == committed
-            assert m.counts() == hestore.mesh.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
+            assert m.counts() == hestore.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
             assert m.check() == []
             assert m.revision == 1
             release.set()
             assert _get(results) == ("committed", None)
             p.join(timeout=30)
-            assert m.counts() == hestore.mesh.Counts(vertices=5, halfedges=8, edges=4, polygons=1)
+            assert m.counts() == hestore.Counts(vertices=5, halfedges=8, edges=4, polygons=1)
             assert m.revision == 2
     finally:
         release.set()
         _stop([p])
+
+
+def test_writer_waiting_for_a_mesh_that_gets_deleted(db_url):
+    """B waits for A's lock; A deletes the mesh and commits; B gets MeshNotFoundError, leaving no rows."""
+    _setup(db_url, "m", "n")
+    with hestore.open(db_url) as s:
+        m_id = s.mesh("m")._id
+    p, release, results = _hold(db_url, "m", action="delete")
+    try:
+        with hestore.open(db_url, busy_timeout=30.0) as b:
+            m = b.mesh("m")  # the deletion is not committed yet: B still finds it
+            timer = threading.Timer(0.5, release.set)
+            timer.start()
+            try:
+                t0 = time.monotonic()
+                with pytest.raises(MeshNotFoundError):
+                    m.add_polygon([m.add_vertex() for _ in range(3)])
+                assert time.monotonic() - t0 < 25.0
+            finally:
+                timer.cancel()
+                release.set()
+            assert _get(results) == ("committed", None)
+            assert b.meshes() == ["n"]
+            d = dump(db_url)
+            for table, rows in d.items():
+                assert not [r for r in rows if r[0] == m_id], f"rows of the deleted mesh left in {table}"
+            assert b.mesh("n").check() == []
+    finally:
+        release.set()
+        _stop([p])
+    assert p.exitcode == 0
+
+
+def test_crossed_blocks_deadlock_loser_retries_and_nothing_is_lost(db_url, backend):
+    """Two blocks lock "m" then "n" and "n" then "m": a deadlock on PostgreSQL.
+
+    PostgreSQL breaks it: one block gets `StoreBusyError`, rolls back and
+    retries; both blocks' edits end up committed exactly once. (On SQLite
+    the second block cannot even begin while the first is open, so there is
+    no deadlock to provoke.)
+    """
+    if backend != "postgresql":
+        pytest.skip("SQLite serializes whole write transactions: blocks cannot deadlock")
+    _setup(db_url, "m", "n")
+    ready = CTX.Barrier(2)
+    results = CTX.Queue()
+    procs = [_run(_cross, db_url, "m", "n", ready, results), _run(_cross, db_url, "n", "m", ready, results)]
+    try:
+        reports = [_get(results) for _ in procs]
+    finally:
+        _stop(procs)
+    errors = [r for r in reports if r[0] != "ok"]
+    assert not errors, "\n".join(r[2] for r in errors)
+    with hestore.open(db_url) as store:
+        for name in ("m", "n"):
+            mesh = store.mesh(name)
+            assert mesh.counts().vertices == 2 + 2  # one vertex from each block
+            assert mesh.revision == 1 + 2
+            assert mesh.check() == []
+    assert max(r[2] for r in reports) >= 2, "expected the deadlock to make one block retry"

@@ -40,7 +40,7 @@ import math
 import os
 
 import pytest
-from hypothesis import HealthCheck, Phase, settings
+from hypothesis import HealthCheck, Phase, event, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import (
     RuleBasedStateMachine,
@@ -60,7 +60,6 @@ from hestore.errors import (
     NonManifoldError,
     NotAChainError,
     PolicyError,
-    TopologyError,
     VertexNotFreeError,
 )
 
@@ -117,6 +116,45 @@ class Model:
 
     def cycle_vertices(self, p: int) -> list[int]:
         return [self.halfedges[h][0] for h in self.polygons[p]]
+
+    def can_close(self, loop, new_edges=()) -> bool:
+        """Whether free, chaining, distinct half-edges ``loop`` can bound a polygon.
+
+        An independent oracle for seed 000's rule: "a half-edge loop can be
+        turned into a polygon if and only if every half-edge in the loop is
+        free and the loop can be made properly oriented by reordering the
+        connectivity around the vertices of the loop". Around a vertex, each
+        polygon corner (``next(i) == o``) fixes one step of the rotation,
+        ``twin(i) → o``; free gaps can be reordered at will. With the new
+        polygon's corners added, the fixed steps around every vertex of the
+        loop must still fit into one rotation cycle: either they form no
+        cycle (fans separated by free gaps), or one cycle through every
+        outgoing half-edge (a closed vertex). ``new_edges`` are edges the call
+        would create first, as ``(a, b, h, t)`` with placeholder half-edge ids.
+        """
+        twin, origin = {}, {}
+        for a, b, h, t in list(self.edges.values()) + list(new_edges):
+            twin[h], twin[t], origin[h], origin[t] = t, h, a, b
+        succ = {}
+        for cycle in list(self.polygons.values()) + [list(loop)]:
+            for i, h in enumerate(cycle):
+                succ[twin[h]] = cycle[(i + 1) % len(cycle)]
+        for v in {origin[h] for h in loop}:
+            nodes = [h for h, o in origin.items() if o == v]
+            on_cycle = []
+            for x in nodes:
+                y, steps = succ.get(x), 0
+                while y is not None and y != x and steps <= len(nodes):
+                    y, steps = succ.get(y), steps + 1
+                if y == x:
+                    on_cycle.append(x)
+            if on_cycle:
+                x, length = succ[on_cycle[0]], 1
+                while x != on_cycle[0]:
+                    x, length = succ[x], length + 1
+                if length != len(nodes):
+                    return False
+        return True
 
     # -- effects -------------------------------------------------------------
 
@@ -194,8 +232,8 @@ class MeshMachine(RuleBasedStateMachine):
 
     # -- set-up and tear-down -------------------------------------------------
 
-    @initialize(loops=st.booleans(), multi=st.booleans(), strict=st.integers(0, 3))
-    def make_mesh(self, loops, multi, strict):
+    @initialize(loops=st.booleans(), multi=st.booleans(), strict=st.integers(0, 3), start=st.integers(0, 6))
+    def make_mesh(self, loops, multi, strict, start):
         # mostly permissive meshes, sometimes ones that forbid loops / parallel edges
         self.allow_loops = loops or strict > 0
         self.allow_multi = multi or strict > 0
@@ -203,6 +241,11 @@ class MeshMachine(RuleBasedStateMachine):
         self.name = f"sm{next(self.counter)}"
         self.mesh = self.store.create_mesh(self.name, allow_loops=self.allow_loops,
                                            allow_multi_edges=self.allow_multi)
+        if start:
+            with self.store.transaction():  # one transaction: revision 1
+                for _ in range(start):
+                    self.model.add_vertex(self.mesh.add_vertex().id)
+            self.committed_revision = 1
         self.last_dump = self.committed_dump = dump(self.store)
 
     def teardown(self):
@@ -252,6 +295,7 @@ class MeshMachine(RuleBasedStateMachine):
         before = self.last_dump
         with pytest.raises(errors) as info:
             call()
+        event(f"refused: {type(info.value).__name__}")
         assert dump(self.store) == before, f"refused call ({info.value!r}) changed the database"
         assert self.mesh.revision == self.expected_revision
         return info.value
@@ -265,6 +309,14 @@ class MeshMachine(RuleBasedStateMachine):
     @precondition(lambda self: len(self.stack) < MAX_DEPTH)
     @rule()
     def begin_block(self):
+        self._begin_block()
+
+    @precondition(lambda self: len(self.stack) < MAX_DEPTH)
+    @rule()
+    def begin_block_again(self):
+        self._begin_block()
+
+    def _begin_block(self):
         cm = self.store.transaction()
         cm.__enter__()
         self.stack.append(Frame(cm, copy.deepcopy(self.model)))
@@ -286,6 +338,7 @@ class MeshMachine(RuleBasedStateMachine):
     @rule()
     def rollback_block(self):
         frame = self.stack.pop()
+        event(f"rollback at depth {len(self.stack) + 1}")
         suppressed = frame.cm.__exit__(Rollback, Rollback(), None)
         assert not suppressed
         self.model = frame.snapshot
@@ -305,6 +358,14 @@ class MeshMachine(RuleBasedStateMachine):
     @precondition(lambda self: self.model.vertices)
     @rule(data=st.data())
     def add_edge(self, data):
+        self._add_edge(data)
+
+    @precondition(lambda self: self.model.vertices)
+    @rule(data=st.data())
+    def add_edge_again(self, data):  # (a second rule doubles how often edges are added)
+        self._add_edge(data)
+
+    def _add_edge(self, data):
         m = self.model
         vs = sorted(m.vertices)
         a = data.draw(st.sampled_from(vs), label="a")
@@ -327,60 +388,99 @@ class MeshMachine(RuleBasedStateMachine):
         self.changed()
 
     def _predict_from_vertices(self, corners):
-        """(error or None, multiset of new edges' unordered pairs) for add_polygon(corners)."""
+        """What add_polygon(corners) must do, from the model alone.
+
+        Returns ``(error, new_pairs, loop, new_edges)``: the error the first
+        impossible pair of corners must raise (or None); the unordered vertex
+        pairs of the edges the call creates; the half-edges the polygon must
+        use (placeholders for new edges' ones) or None where there is a choice
+        between parallel free half-edges, which SPEC leaves open; the new
+        edges as ``(a, b, h, t)``.
+        """
         m = self.model
         n = len(corners)
         available = {}  # ordered pair -> free half-edges a→b not yet used by this loop
-        joined_now = set()  # unordered pairs joined by an edge (existing or new in this loop)
-        for x, y, _h, _t in m.edges.values():
-            joined_now.add(frozenset((x, y)))
-        new_pairs = []
+        joined_now = {frozenset((x, y)) for x, y, _h, _t in m.edges.values()}
+        new_pairs, new_edges, loop = [], [], []
+        ambiguous = False
         for i, a in enumerate(corners):
             b = corners[(i + 1) % n]
-            key = (a, b)
-            if key not in available:
-                available[key] = len([h for h in m.between(a, b) if m.face[h] is None])
+            for key in ((a, b), (b, a)):
+                if key not in available:
+                    available[key] = [h for h in m.between(*key) if m.face[h] is None]
             if frozenset((a, b)) in joined_now:
-                if available[key] == 0:
-                    return HalfEdgeNotFreeError, new_pairs
-                available[key] -= 1
+                free = [h for h in available[(a, b)] if h not in loop]
+                if not free:
+                    return HalfEdgeNotFreeError, new_pairs, None, new_edges
+                ambiguous |= len(free) > 1
+                loop.append(free[0])
                 continue
             if a == b and not self.allow_loops:
-                return PolicyError, new_pairs
+                return PolicyError, new_pairs, None, new_edges
             if not m.is_free(a) or not m.is_free(b):
-                return VertexNotFreeError, new_pairs
+                return VertexNotFreeError, new_pairs, None, new_edges
             # a new edge a→b: its a→b half-edge is used now, its b→a twin is free for later
+            k = len(new_edges)
+            h, t = ("new", k, 0), ("new", k, 1)
+            new_edges.append((a, b, h, t))
             joined_now.add(frozenset((a, b)))
             new_pairs.append(tuple(sorted((a, b))))
-            rev = (b, a)
-            if rev not in available:
-                available[rev] = len([h for h in m.between(b, a) if m.face[h] is None])
-            available[rev] += 1
-        return None, new_pairs
+            available[(b, a)].append(t)
+            if a == b:
+                available[(a, b)] = available[(b, a)]
+            loop.append(h)
+        return None, new_pairs, (None if ambiguous else loop), new_edges
 
     @precondition(lambda self: self.model.vertices)
     @rule(data=st.data())
     def add_polygon_by_vertices(self, data):
+        # 1-5 corners, duplicates allowed: many are refused
+        vs = sorted(self.model.vertices)
+        self._add_polygon_by_vertices(data, st.lists(st.sampled_from(vs), min_size=1, max_size=5))
+
+    @precondition(lambda self: self.model.vertices)
+    @rule(data=st.data())
+    def add_polygon_by_distinct_vertices(self, data):
+        # 2-4 different corners: more of these succeed
+        vs = sorted(self.model.vertices)
+        self._add_polygon_by_vertices(data, st.lists(st.sampled_from(vs), min_size=min(2, len(vs)),
+                                                     max_size=4, unique=True))
+
+    @precondition(lambda self: self.model.vertices)
+    @rule(data=st.data())
+    def add_polygon_by_distinct_vertices_again(self, data):
+        vs = sorted(self.model.vertices)
+        self._add_polygon_by_vertices(data, st.lists(st.sampled_from(vs), min_size=min(3, len(vs)),
+                                                     max_size=3, unique=True))
+
+    def _add_polygon_by_vertices(self, data, corner_lists):
         m = self.model
-        corners = data.draw(st.lists(st.sampled_from(sorted(m.vertices)), min_size=1, max_size=5), label="corners")
+        corners = data.draw(corner_lists, label="corners")
         handles = [self.V(v) for v in corners]
-        error, new_pairs = self._predict_from_vertices(corners)
+        error, new_pairs, predicted, new_edges = self._predict_from_vertices(corners)
         can = self.mesh.can_add_polygon(handles)
         assert dump(self.store) == self.last_dump, "can_add_polygon changed the database"
         if error is not None:
             assert can is False, f"can_add_polygon said yes, expected {error.__name__}"
             self.refused(lambda: self.mesh.add_polygon(handles), error)
             return
+        if predicted is not None:
+            expected = m.can_close(predicted, new_edges)
+            assert can == expected, (
+                f"can_add_polygon({corners}) is {can}, but the loop {predicted} "
+                f"{'can' if expected else 'cannot'} be made a polygon by reordering around its vertices"
+            )
         if not can:
             self.refused(lambda: self.mesh.add_polygon(handles), NonManifoldError)
             return
         known_edges = set(m.edges)
         p = self.mesh.add_polygon(handles)
         self.changed()
+        event(f"add_polygon by {len(corners)} vertices")
         # the new edges: exactly the predicted ones
-        new_edges = self.new_ids("edges", known_edges)
-        assert sorted(new_pairs) == sorted(tuple(sorted(v.id for v in self.E(e).vertices())) for e in new_edges)
-        for e in new_edges:
+        new_ids = self.new_ids("edges", known_edges)
+        assert sorted(new_pairs) == sorted(tuple(sorted(v.id for v in self.E(e).vertices())) for e in new_ids)
+        for e in new_ids:
             h, t = self.E(e).halfedges()
             m.add_edge(e, h.origin.id, h.target.id, h.id, t.id)
         loop = [h.id for h in p.halfedges()]
@@ -388,6 +488,12 @@ class MeshMachine(RuleBasedStateMachine):
         assert rotations_equal([m.halfedges[h][0] for h in loop], corners)
         for h in loop:
             assert m.face[h] is None, f"half-edge {h} used by the new polygon was not free"
+        if predicted is not None:
+            new_halfedges = {x for e in new_ids for x in m.edges[e][2:]}
+            assert any(
+                all(q == g if not isinstance(q, tuple) else g in new_halfedges for q, g in zip(predicted, loop[r:] + loop[:r]))
+                for r in range(len(loop))
+            ), f"polygon uses half-edges {loop}, expected {predicted}"
         m.add_polygon(p.id, loop)
 
     def _free_next_loop(self, start: int) -> list[int]:
@@ -400,9 +506,17 @@ class MeshMachine(RuleBasedStateMachine):
         return loop
 
     @precondition(lambda self: self.model.free_halfedges())
-    @rule(data=st.data(), how=st.sampled_from(["loop", "loop", "rotated", "truncated", "shuffled", "chain",
-                                               "chain", "with_taken", "duplicate"]))
+    @rule(data=st.data(), how=st.sampled_from(["loop", "rotated", "truncated", "shuffled", "chain",
+                                               "with_taken", "duplicate"]))
     def add_polygon_by_halfedges(self, data, how):
+        self._add_polygon_by_halfedges(data, how)
+
+    @precondition(lambda self: self.model.free_halfedges())
+    @rule(data=st.data(), how=st.sampled_from(["loop", "chain"]))
+    def add_polygon_by_halfedges_again(self, data, how):
+        self._add_polygon_by_halfedges(data, how)
+
+    def _add_polygon_by_halfedges(self, data, how):
         m = self.model
         free = m.free_halfedges()
         start = data.draw(st.sampled_from(free), label="start")
@@ -422,10 +536,11 @@ class MeshMachine(RuleBasedStateMachine):
                 loop = loop + [loop[data.draw(st.integers(0, len(loop) - 1), label="dup")]]
         else:
             # a random walk along free half-edges, hoping to come back to the start
+            # (sometimes going on through it, so that the loop passes a vertex twice)
             loop = [start]
-            for _ in range(4):
+            for _ in range(5):
                 here = m.halfedges[loop[-1]][1]
-                if here == m.halfedges[start][0]:
+                if here == m.halfedges[start][0] and data.draw(st.integers(0, 3), label="stop") > 0:
                     break
                 options = [h for h in m.outgoing(here) if m.face[h] is None and h not in loop]
                 if not options:
@@ -453,11 +568,17 @@ class MeshMachine(RuleBasedStateMachine):
             return
         if must_succeed:
             assert can is True, f"a whole free loop {loop} (following next) must be accepted"
+        expected = m.can_close(loop)
+        assert can == expected, (
+            f"can_add_polygon({loop}) is {can}, but the loop {'can' if expected else 'cannot'} "
+            f"be made a polygon by reordering around its vertices"
+        )
         if not can:
             self.refused(lambda: self.mesh.add_polygon(handles), NonManifoldError)
             return
         p = self.mesh.add_polygon(handles)
         self.changed()
+        event(f"add_polygon by half-edges ({how})")
         got = [h.id for h in p.halfedges()]
         assert rotations_equal(got, loop)
         m.add_polygon(p.id, got)
@@ -490,12 +611,19 @@ class MeshMachine(RuleBasedStateMachine):
 
     # -- operations that must fail ----------------------------------------------
 
-    @precondition(lambda self: any(self.model.removed.values()))
-    @rule(data=st.data())
-    def use_stale_handle(self, data):
+    @rule(data=st.data(), what=st.sampled_from(["stale", "stale", "malformed"]))
+    def operation_that_must_fail(self, data, what):
+        if what == "stale":
+            self._use_stale_handle(data)
+        elif self.model.vertices:
+            self._malformed_input(data)
+
+    def _use_stale_handle(self, data):
+        """Handles of removed elements (or of ids never handed out) raise ElementNotFoundError."""
         m = self.model
-        kind = data.draw(st.sampled_from(sorted(k for k, ids in m.removed.items() if ids)), label="kind")
-        i = data.draw(st.sampled_from(sorted(m.removed[kind])), label="id")
+        kind = data.draw(st.sampled_from(["vertex", "edge", "halfedge", "polygon"]), label="kind")
+        never = 10**9 + 7
+        i = data.draw(st.sampled_from(sorted(m.removed[kind]) + [never]), label="id")
         live = sorted(m.vertices)
         other = self.V(live[0]) if live else None
         if kind == "vertex":
@@ -521,19 +649,7 @@ class MeshMachine(RuleBasedStateMachine):
         call = data.draw(st.sampled_from(calls), label="call")
         self.refused(call, ElementNotFoundError)
 
-    @rule(kind=st.sampled_from(["vertex", "edge", "polygon"]))
-    def use_never_allocated_id(self, kind):
-        i = 10**9 + 7
-        call = {
-            "vertex": lambda: self.mesh.remove_vertex(self.V(i)),
-            "edge": lambda: self.mesh.remove_edge(self.E(i)),
-            "polygon": lambda: self.mesh.remove_polygon(self.P(i)),
-        }[kind]
-        self.refused(call, ElementNotFoundError)
-
-    @precondition(lambda self: self.model.vertices)
-    @rule(data=st.data())
-    def malformed_input(self, data):
+    def _malformed_input(self, data):
         v = self.V(data.draw(st.sampled_from(sorted(self.model.vertices)), label="v"))
         call = data.draw(st.sampled_from([
             lambda: self.mesh.add_vertex((math.nan, 0.0, 0.0)),
@@ -624,6 +740,6 @@ def _run(url: str, max_examples: int, steps: int) -> None:
 
 def test_state_machine(db_url, backend):
     if backend == "sqlite":
-        _run(db_url, max_examples=50, steps=30)
+        _run(db_url, max_examples=60, steps=40)
     else:
-        _run(db_url, max_examples=12, steps=30)
+        _run(db_url, max_examples=15, steps=30)

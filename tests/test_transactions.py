@@ -23,7 +23,6 @@ from hestore.errors import (
     NonManifoldError,
     NotAChainError,
     PolicyError,
-    TopologyError,
     VertexNotFreeError,
 )
 
@@ -69,17 +68,7 @@ def build(mesh):
                 pillow=pillow, p1=p1, p2=p2, iso=iso)
 
 
-BUILT_COUNTS = hestore.mesh.Counts(vertices=12, halfedges=24, edges=12, polygons=6)
-
-
-def cycle_equal(a, b) -> bool:
-    """Whether two sequences are the same cycle (up to rotation)."""
-    a, b = list(a), list(b)
-    if len(a) != len(b):
-        return False
-    if not a:
-        return True
-    return any(a[i:] + a[:i] == b for i in range(len(a)))
+BUILT_COUNTS = hestore.Counts(vertices=12, halfedges=24, edges=12, polygons=6)
 
 
 @pytest.fixture
@@ -104,10 +93,10 @@ def test_block_commits_everything_together(store, mesh, other, db_url):
         d = mesh.add_vertex()
         mesh.add_edge(c, d)
         # nothing is visible to the other connection before the commit
-        assert seen.counts() == hestore.mesh.Counts(0, 0, 0, 0)
+        assert seen.counts() == hestore.Counts(0, 0, 0, 0)
         assert dump_url(db_url) == before
     assert not store.in_transaction
-    assert seen.counts() == hestore.mesh.Counts(vertices=4, halfedges=8, edges=4, polygons=1)
+    assert seen.counts() == hestore.Counts(vertices=4, halfedges=8, edges=4, polygons=1)
     assert [x.id for x in seen.polygon(p.id).vertices()] == [a.id, b.id, c.id]
     assert seen.revision == 1
     assert seen.check() == []
@@ -180,10 +169,10 @@ def test_nested_inner_rollback_keeps_outer_edits(store, mesh, db_url):
                 mesh.remove_vertex(a)
                 raise Boom
         assert dump_store(store) == at_savepoint
-        assert mesh.counts() == hestore.mesh.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
+        assert mesh.counts() == hestore.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
         d = mesh.add_vertex()
         mesh.add_polygon([a, b, d])
-    assert mesh.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+    assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
     assert mesh.revision == 1
     assert mesh.check() == []
     assert dump_url(db_url) == dump_store(store)
@@ -223,7 +212,7 @@ def test_three_levels(store, mesh, db_url):
                 v4 = mesh.add_vertex()
                 p = mesh.add_polygon([v1, v2, v4])
             assert p.vertices() == [v1, v2, v4]
-        assert mesh.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+        assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
         with pytest.raises(Boom):
             with store.transaction():
                 mesh.remove_vertex(v1)
@@ -232,10 +221,10 @@ def test_three_levels(store, mesh, db_url):
                     with store.transaction():
                         mesh.add_vertex()
                 raise Boom
-        assert mesh.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+        assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
         assert dump_url(db_url) == start  # nothing committed yet
         assert level1 != level2
-    assert mesh.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+    assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
     assert mesh.revision == 1
     assert mesh.check() == []
     assert dump_url(db_url) == dump_store(store)
@@ -394,14 +383,14 @@ def test_outside_a_block_each_mutating_call_is_its_own_transaction(store, mesh, 
     e = mesh.add_edge(a, b)
     assert mesh.revision == 4 and seen.counts().edges == 1
     p = mesh.add_polygon([a, b, c])
-    assert mesh.revision == 5 and seen.counts() == hestore.mesh.Counts(3, 6, 3, 1)
+    assert mesh.revision == 5 and seen.counts() == hestore.Counts(3, 6, 3, 1)
     mesh.remove_polygon(p)
     assert mesh.revision == 6 and seen.counts().polygons == 0
     mesh.remove_edge(e)
     assert mesh.revision == 7
     mesh.remove_vertex(c)
     assert mesh.revision == 8 and seen.revision == 8
-    assert seen.counts() == hestore.mesh.Counts(vertices=2, halfedges=0, edges=0, polygons=0)
+    assert seen.counts() == hestore.Counts(vertices=2, halfedges=0, edges=0, polygons=0)
     # reads and refused edits are not transactions that changed the mesh
     mesh.counts(), mesh.check(), a.neighbors(), mesh.can_add_polygon([a, b])
     with pytest.raises(ElementNotFoundError):
@@ -466,7 +455,7 @@ def test_can_add_polygon_in_block_then_real_edits(store, mesh):
     with store.transaction():
         assert mesh.can_add_polygon([a, b, c])
         p = mesh.add_polygon([a, b, c])
-    assert mesh.counts() == hestore.mesh.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
+    assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
     assert p.vertices() == [a, b, c]
     assert mesh.check() == []
     assert mesh.revision == 4
@@ -527,7 +516,7 @@ def test_reads_inside_block_see_own_uncommitted_edits(store, mesh, other):
         a, b, c, d = (mesh.add_vertex((i, i, 0)) for i in range(4))
         p = mesh.add_polygon([a, b, c])
         e = mesh.add_edge(c, d)
-        assert mesh.counts() == hestore.mesh.Counts(vertices=4, halfedges=8, edges=4, polygons=1)
+        assert mesh.counts() == hestore.Counts(vertices=4, halfedges=8, edges=4, polygons=1)
         assert p.vertices() == [a, b, c] and p.degree == 3
         h = mesh.find_halfedge(a, b)
         assert h.polygon == p and h.next.origin == b and h.next.next.next == h
@@ -539,7 +528,7 @@ def test_reads_inside_block_see_own_uncommitted_edits(store, mesh, other):
         assert mesh.check() == []
         assert mesh.revision == 1
         # the other connection still sees the committed (empty) mesh
-        assert seen.counts() == hestore.mesh.Counts(0, 0, 0, 0)
+        assert seen.counts() == hestore.Counts(0, 0, 0, 0)
         assert seen.revision == 0
         with pytest.raises(ElementNotFoundError):
             seen.vertex(a.id)
@@ -549,7 +538,7 @@ def test_reads_inside_block_see_own_uncommitted_edits(store, mesh, other):
         with pytest.raises(ElementNotFoundError):
             p.vertices()
         assert mesh.check() == []
-    assert seen.counts() == hestore.mesh.Counts(vertices=4, halfedges=8, edges=4, polygons=0)
+    assert seen.counts() == hestore.Counts(vertices=4, halfedges=8, edges=4, polygons=0)
     assert seen.revision == 1
     assert seen.check() == []
 
@@ -574,7 +563,7 @@ def test_other_connection_sees_only_committed_state(store, mesh, other, db_url):
         assert seen.check() == []
         assert h["t1"].mesh is mesh and seen.polygon(h["t1"].id).degree == 3
         assert dump_url(db_url) == committed
-    assert seen.counts() == hestore.mesh.Counts(
+    assert seen.counts() == hestore.Counts(
         vertices=BUILT_COUNTS.vertices - 1 + 5,
         halfedges=BUILT_COUNTS.halfedges - 6 + 10,
         edges=BUILT_COUNTS.edges - 3 + 5,
@@ -854,6 +843,29 @@ def test_close_inside_block_rolls_back(db_url):
     assert dump_url(db_url) == before
     with pytest.raises(HestoreError):
         m.add_vertex()
+
+
+def test_transaction_on_a_closed_store_raises_hestore_error(db_url):
+    store = hestore.open(db_url)
+    store.close()
+    with pytest.raises(HestoreError):
+        with store.transaction():
+            pass
+    assert not store.in_transaction
+
+
+def test_close_inside_nested_block_rolls_back_everything(db_url):
+    store = hestore.open(db_url)
+    m = store.create_mesh("m")
+    before = dump_url(db_url)
+    with pytest.raises(HestoreError):
+        with store.transaction():
+            m.add_vertex()
+            with store.transaction():
+                m.add_vertex()
+                store.close()
+    assert dump_url(db_url) == before
+    assert not store.in_transaction
 
 
 def test_close_inside_block_data_is_rolled_back(db_url):

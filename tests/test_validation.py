@@ -312,7 +312,9 @@ VALID = {
     "three parallel edges": lambda: build(2, [(0, 1), (0, 1), (1, 0)]),
     "bowtie (two triangles at one vertex)": bowtie,
     "triangle with dangling wire and loop": lambda: build_faces(5, [(0, 1, 2)], extra_edges=[(0, 3), (3, 3), (2, 4)]),
-    "polygon with a wire inside its loop": lambda: build(3, [(0, 1), (1, 2), (2, 0), (0, 1)], [[0, 2, 4]]),
+    "triangle beside a parallel wire edge": lambda: build(3, [(0, 1), (1, 2), (2, 0), (0, 1)], [[0, 2, 4]]),
+    # a square whose loop goes out along a dangling edge and back (both its half-edges)
+    "polygon around a dangling edge": lambda: build(5, [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4)], [[0, 2, 4, 6, 8, 9]]),
     "grid 3x3": lambda: grid_arrays(3),
 }
 
@@ -823,11 +825,10 @@ def _insert(conn, mesh_id, arrays):
             for row in zip(a.he_id, a.he_origin, a.he_next, a.he_prev, a.he_twin, a.he_edge, a.he_polygon)
         ],
     )
-    conn.execute(schema.edges.insert(), [{"mesh_id": mesh_id, "id": int(i), "halfedge": int(h)} for i, h in zip(a.e_id, a.e_halfedge)])
-    if len(a.p_id):
-        conn.execute(
-            schema.polygons.insert(), [{"mesh_id": mesh_id, "id": int(i), "halfedge": int(h)} for i, h in zip(a.p_id, a.p_halfedge)]
-        )
+    for table, ids, halfedge in ((schema.edges, a.e_id, a.e_halfedge), (schema.polygons, a.p_id, a.p_halfedge)):
+        if len(ids):
+            rows = [{"mesh_id": mesh_id, "id": int(i), "halfedge": int(h)} for i, h in zip(ids, halfedge)]
+            conn.execute(table.insert(), rows)
 
 
 def _new_mesh(conn, name):
@@ -906,10 +907,15 @@ def test_load_arrays_round_trip_and_corruption(db_url, backend, monkeypatch):
         other_next = int(expected.he_next[expected.he_next != nxt][0])
         vertex = int(expected.v_id[0])
         incoming = int(expected.he_id[expected.he_origin != vertex][0])
+        he_row = schema.halfedges.update().where(h.mesh_id == mesh_id, h.id == target)
         corruptions = [
-            (schema.halfedges.update().where(h.mesh_id == mesh_id, h.id == target).values(next=other_next), {"H_NEXT_PREV"}, target),
-            (schema.halfedges.update().where(h.mesh_id == mesh_id, h.id == target).values(twin=target), {"H_TWIN"}, target),
-            (schema.vertices.update().where(v.mesh_id == mesh_id, v.id == vertex).values(halfedge=incoming), {"V_HALFEDGE"}, vertex),
+            (he_row.values(next=other_next), {"H_NEXT_PREV"}, target),
+            (he_row.values(twin=target), {"H_TWIN"}, target),
+            (
+                schema.vertices.update().where(v.mesh_id == mesh_id, v.id == vertex).values(halfedge=incoming),
+                {"V_HALFEDGE"},
+                vertex,
+            ),
             (schema.halfedges.update().where(h.mesh_id == mesh_id, h.id == t).values(origin=10_000), {"REF"}, t),
         ]
         for statement, expected_codes, element in corruptions:

@@ -146,7 +146,7 @@ def _edges_between(uow: UnitOfWork, a: int, b: int) -> list[int]:
 
 
 def _check_edge(uow: UnitOfWork, a: int, b: int) -> None:
-    uow.load_stars((a, b))
+    uow.load(stars=(a, b))
     uow.vhe(a)
     uow.vhe(b)
     if a == b and not uow.allow_loops:
@@ -194,13 +194,14 @@ def add_edge(uow: UnitOfWork, a: int, b: int) -> int:
 def _check_loop(uow: UnitOfWork, loop: Sequence[int]) -> None:
     if not loop:
         raise InvalidInputError("a polygon needs at least one half-edge")
+    uow.load(halfedges=loop)
     seen: set[int] = set()
     for h in loop:
         uow.he(h)
         if h in seen:
             raise InvalidInputError(f"half-edge {h} appears twice in the loop", (("halfedge", h),))
         seen.add(h)
-    uow.load_stars(uow.he(h)[ORIGIN] for h in loop)
+    uow.load(stars=[uow.he(h)[ORIGIN] for h in loop])
     n = len(loop)
     for i, h in enumerate(loop):
         nxt = loop[(i + 1) % n]
@@ -290,9 +291,9 @@ def add_polygon_from_vertices(uow: UnitOfWork, vertices: Sequence[int]) -> int:
     vertices = list(vertices)
     if not vertices:
         raise InvalidInputError("a polygon needs at least one vertex")
+    uow.load(stars=vertices)
     for v in vertices:
         uow.vhe(v)
-    uow.load_stars(vertices)
     n = len(vertices)
     loop: list[int] = []
     used: set[int] = set()
@@ -322,9 +323,9 @@ def _polygon_loop(uow: UnitOfWork, p: int) -> list[int]:
 
 def remove_polygon(uow: UnitOfWork, p: int) -> None:
     """Remove polygon ``p``; its half-edges become free, its edges stay."""
-    uow.load_polygons([p])
+    uow.load(polygons=(p,))
     loop = _polygon_loop(uow, p)
-    uow.load_stars(uow.he(h)[ORIGIN] for h in loop)
+    uow.load(stars=[uow.he(h)[ORIGIN] for h in loop])
     for h in loop:
         uow.set_polygon(h, None)
     uow.delete_polygon(p)
@@ -332,6 +333,13 @@ def remove_polygon(uow: UnitOfWork, p: int) -> None:
         v = uow.he(h)[ORIGIN]
         if uow.he(uow.vhe(v))[POLYGON] is not None:
             uow.set_vhe(v, h)
+
+
+def _load_footprint(uow: UnitOfWork, vertices: list[int], polygons: list[int]) -> None:
+    """Cache, in two queries, everything removing these polygons and edges touches."""
+    uow.load(polygons=polygons)
+    corners = [uow.he(h)[ORIGIN] for p in polygons for h in _polygon_loop(uow, p)]
+    uow.load(stars=vertices + corners)
 
 
 def _unlink(uow: UnitOfWork, h: int) -> None:
@@ -347,13 +355,13 @@ def _unlink(uow: UnitOfWork, h: int) -> None:
 
 def remove_edge(uow: UnitOfWork, e: int) -> None:
     """Remove edge ``e`` and the polygons on both of its sides."""
-    uow.load_edges([e])
+    uow.load(edges=(e,))
     h = uow.edge_he(e)
     t = uow.he(h)[TWIN]
-    uow.load_stars((uow.he(h)[ORIGIN], uow.he(t)[ORIGIN]))
-    for p in dict.fromkeys((uow.he(h)[POLYGON], uow.he(t)[POLYGON])):
-        if p is not None:
-            remove_polygon(uow, p)
+    polygons = [p for p in dict.fromkeys((uow.he(h)[POLYGON], uow.he(t)[POLYGON])) if p is not None]
+    _load_footprint(uow, [uow.he(h)[ORIGIN], uow.he(t)[ORIGIN]], polygons)
+    for p in polygons:
+        remove_polygon(uow, p)
     _unlink(uow, h)
     _unlink(uow, t)
     uow.delete_edge(e)
@@ -361,8 +369,12 @@ def remove_edge(uow: UnitOfWork, e: int) -> None:
 
 def remove_vertex(uow: UnitOfWork, v: int) -> None:
     """Remove vertex ``v`` with every edge incident to it (a loop once)."""
+    uow.load(stars=(v,))
     uow.vhe(v)
-    uow.load_stars([v])
-    for e in sorted({uow.he(h)[EDGE] for h in uow.outgoing(v)}):
+    out = uow.outgoing(v)
+    ends = [v] + [_target(uow, h) for h in out]
+    polygons = {uow.he(x)[POLYGON] for h in out for x in (h, uow.he(h)[TWIN])} - {None}
+    _load_footprint(uow, ends, sorted(polygons))
+    for e in sorted({uow.he(h)[EDGE] for h in out}):
         remove_edge(uow, e)
     uow.delete_vertex(v)

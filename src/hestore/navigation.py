@@ -17,13 +17,16 @@ from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 
-from hestore import schema
+from hestore import handles, schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError
 from hestore.statements import indexed_by
+from hestore.validation import Violation
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.handles import Edge, HalfEdge, Polygon, Vertex
     from hestore.mesh import Mesh
+
+# `hestore.handles` imports this module; its classes are looked up at call time.
 
 __all__ = [
     "halfedge_record",
@@ -100,10 +103,8 @@ def halfedge_record(h: "HalfEdge") -> tuple:
     return rows[0]
 
 
-def _he(mesh: "Mesh", i: int):
-    from hestore.handles import HalfEdge
-
-    return HalfEdge(mesh, i)
+def _he(mesh: "Mesh", i: int) -> "HalfEdge":
+    return handles.HalfEdge(mesh, i)
 
 
 def next_halfedge(h: "HalfEdge") -> "HalfEdge":
@@ -123,31 +124,23 @@ def twin(h: "HalfEdge") -> "HalfEdge":
 
 def origin(h: "HalfEdge") -> "Vertex":
     """The vertex ``h`` starts at."""
-    from hestore.handles import Vertex
-
-    return Vertex(h.mesh, halfedge_record(h)[0])
+    return handles.Vertex(h.mesh, halfedge_record(h)[0])
 
 
 def target(h: "HalfEdge") -> "Vertex":
     """The vertex ``h`` ends at (the origin of its twin)."""
-    from hestore.handles import Vertex
-
-    return Vertex(h.mesh, halfedge_record(h)[6])
+    return handles.Vertex(h.mesh, halfedge_record(h)[6])
 
 
 def polygon(h: "HalfEdge") -> "Polygon | None":
     """The polygon to the left of ``h``; ``None`` if ``h`` is free."""
-    from hestore.handles import Polygon
-
     p = halfedge_record(h)[5]
-    return None if p is None else Polygon(h.mesh, p)
+    return None if p is None else handles.Polygon(h.mesh, p)
 
 
 def edge(h: "HalfEdge") -> "Edge":
     """The edge ``h`` is half of."""
-    from hestore.handles import Edge
-
-    return Edge(h.mesh, halfedge_record(h)[4])
+    return handles.Edge(h.mesh, halfedge_record(h)[4])
 
 
 def is_boundary_halfedge(h: "HalfEdge") -> bool:
@@ -264,14 +257,8 @@ def _star(v: "Vertex") -> list[tuple]:
         if h == start:
             return ordered
     raise InvariantViolationError(
-        [_violation("V_ROTATION", "vertex", (v.id,), f"the rotation around vertex {v.id} does not close; run check()")]
+        [Violation("V_ROTATION", "vertex", (v.id,), f"the rotation around vertex {v.id} does not close; run check()")]
     )
-
-
-def _violation(code, kind, ids, message):
-    from hestore.validation import Violation
-
-    return Violation(code, kind, ids, message)
 
 
 def outgoing(v: "Vertex") -> list["HalfEdge"]:
@@ -286,23 +273,17 @@ def incoming(v: "Vertex") -> list["HalfEdge"]:
 
 def neighbors(v: "Vertex") -> list["Vertex"]:
     """The target of each outgoing half-edge (repeats for parallel edges, ``v`` for a loop)."""
-    from hestore.handles import Vertex
-
-    return [Vertex(v.mesh, r[5]) for r in _star(v)]
+    return [handles.Vertex(v.mesh, r[5]) for r in _star(v)]
 
 
 def vertex_edges(v: "Vertex") -> list["Edge"]:
     """The edge of each outgoing half-edge (a self-loop appears twice)."""
-    from hestore.handles import Edge
-
-    return [Edge(v.mesh, r[3]) for r in _star(v)]
+    return [handles.Edge(v.mesh, r[3]) for r in _star(v)]
 
 
 def vertex_polygons(v: "Vertex") -> list["Polygon"]:
     """The polygon of each outgoing half-edge, skipping free gaps."""
-    from hestore.handles import Polygon
-
-    return [Polygon(v.mesh, r[4]) for r in _star(v) if r[4] is not None]
+    return [handles.Polygon(v.mesh, r[4]) for r in _star(v) if r[4] is not None]
 
 
 def degree(v: "Vertex") -> int:
@@ -369,7 +350,7 @@ def _ring(p: "Polygon") -> list[tuple]:
         if h == start:
             return ordered
     raise InvariantViolationError(
-        [_violation("P_LOOP", "polygon", (p.id,), f"the half-edges of polygon {p.id} do not close; run check()")]
+        [Violation("P_LOOP", "polygon", (p.id,), f"the half-edges of polygon {p.id} do not close; run check()")]
     )
 
 
@@ -380,23 +361,17 @@ def polygon_halfedges(p: "Polygon") -> list["HalfEdge"]:
 
 def polygon_vertices(p: "Polygon") -> list["Vertex"]:
     """The corners of ``p`` (origins of its half-edges), counter-clockwise."""
-    from hestore.handles import Vertex
-
-    return [Vertex(p.mesh, r[2]) for r in _ring(p)]
+    return [handles.Vertex(p.mesh, r[2]) for r in _ring(p)]
 
 
 def polygon_edges(p: "Polygon") -> list["Edge"]:
     """The edges of ``p``, in ``next`` order."""
-    from hestore.handles import Edge
-
-    return [Edge(p.mesh, r[3]) for r in _ring(p)]
+    return [handles.Edge(p.mesh, r[3]) for r in _ring(p)]
 
 
 def polygon_neighbors(p: "Polygon") -> list["Polygon"]:
     """The polygon across each edge of ``p``, free sides skipped (``p`` itself where it meets itself)."""
-    from hestore.handles import Polygon
-
-    return [Polygon(p.mesh, r[4]) for r in _ring(p) if r[4] is not None]
+    return [handles.Polygon(p.mesh, r[4]) for r in _ring(p) if r[4] is not None]
 
 
 def polygon_degree(p: "Polygon") -> int:
@@ -435,18 +410,14 @@ def edge_halfedges(e: "Edge") -> tuple["HalfEdge", "HalfEdge"]:
 
 def edge_vertices(e: "Edge") -> tuple["Vertex", "Vertex"]:
     """``(origin, target)`` of ``e.halfedge``."""
-    from hestore.handles import Vertex
-
     row = _edge_row(e)
-    return Vertex(e.mesh, row[2]), Vertex(e.mesh, row[3])
+    return handles.Vertex(e.mesh, row[2]), handles.Vertex(e.mesh, row[3])
 
 
 def edge_polygons(e: "Edge") -> list["Polygon"]:
     """The polygons on the two sides of ``e``, free sides skipped."""
-    from hestore.handles import Polygon
-
     row = _edge_row(e)
-    return [Polygon(e.mesh, p) for p in (row[4], row[5]) if p is not None]
+    return [handles.Polygon(e.mesh, p) for p in (row[4], row[5]) if p is not None]
 
 
 def is_boundary_edge(e: "Edge") -> bool:

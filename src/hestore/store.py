@@ -170,6 +170,9 @@ class Store:
                     cur.execute("PRAGMA journal_mode=WAL")
                 # In WAL mode NORMAL loses no consistency, only the last commits on power loss.
                 cur.execute("PRAGMA synchronous=NORMAL")
+                # 64 MiB of page cache (default 2 MiB): random edits on a large mesh
+                # touch pages all over the half-edge table and its indexes.
+                cur.execute("PRAGMA cache_size=-65536")
                 cur.close()
 
             return engine
@@ -298,6 +301,7 @@ class Store:
         >>> mesh.counts().edges, mesh.revision
         (1, 1)
         """
+        self._check_open()
         if self._depth == 0:
             self._begin()
             self._depth = 1

@@ -26,7 +26,8 @@ import sqlalchemy as sa
 
 from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError
-from hestore.statements import StatementCache, indexed_by
+from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
+from hestore.validation import Violation
 
 __all__ = ["UnitOfWork", "MeshSQL", "GONE", "ORIGIN", "NEXT", "PREV", "TWIN", "EDGE", "POLYGON"]
 
@@ -52,6 +53,61 @@ _ABSENT = _Marker("ABSENT")
 _HE_COLS = ("id", "origin", "next", "prev", "twin", "edge", "polygon")
 
 
+K_VERTEX, K_HALFEDGE, K_EDGE, K_POLYGON = range(4)
+
+
+def _load_statement(sizes: tuple) -> sa.CompoundSelect:
+    """The ``UNION ALL`` behind `MeshSQL.load` for the given part sizes."""
+    h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
+    null = sa.cast(sa.null(), sa.BigInteger)
+    m = sa.bindparam("m")
+
+    def kind(k: int):
+        return sa.literal_column(str(k), sa.Integer)
+
+    def he_cols(t):
+        return [kind(K_HALFEDGE)] + [t.c[name] for name in _HE_COLS]
+
+    def pair_cols(k, t):
+        return [kind(k), t.c.id, t.c.halfedge] + [null] * 5
+
+    selects = []
+    for name, size in sizes:
+        ids = [sa.bindparam(f"{name}{i}") for i in range(size)]
+        if name == "vertices":
+            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
+        elif name == "halfedges":
+            selects.append(sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.id.in_(ids)))
+        elif name == "stars":
+            s, t = h.alias("s"), h.alias("t")
+            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
+            out = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.origin.in_(ids))
+            selects.append(indexed_by(out, h, "ix_halfedges_origin"))
+            twins = (
+                sa.select(*he_cols(t))
+                .select_from(s.join(t, sa.and_(t.c.mesh_id == s.c.mesh_id, t.c.id == s.c.twin)))
+                .where(s.c.mesh_id == m, s.c.origin.in_(ids))
+            )
+            selects.append(indexed_by(twins, s, "ix_halfedges_origin"))
+        elif name == "edges":
+            a, b = h.alias("a"), h.alias("b")
+            selects.append(sa.select(*pair_cols(K_EDGE, e)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
+            on_a = sa.and_(a.c.mesh_id == e.c.mesh_id, a.c.id == e.c.halfedge)
+            selects.append(sa.select(*he_cols(a)).select_from(e.join(a, on_a)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
+            selects.append(
+                sa.select(*he_cols(b))
+                .select_from(e.join(a, on_a).join(b, sa.and_(b.c.mesh_id == a.c.mesh_id, b.c.id == a.c.twin)))
+                .where(e.c.mesh_id == m, e.c.id.in_(ids))
+            )
+        elif name == "polygons":
+            selects.append(sa.select(*pair_cols(K_POLYGON, p)).where(p.c.mesh_id == m, p.c.id.in_(ids)))
+            ring = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.polygon.in_(ids))
+            selects.append(indexed_by(ring, h, "ix_halfedges_polygon"))
+        else:  # pragma: no cover - programming error
+            raise ValueError(f"unknown load part {name!r}")
+    return sa.union_all(*selects)
+
+
 class MeshSQL:
     """The SQL a `UnitOfWork` needs: batched loads and set-based writes.
 
@@ -66,130 +122,62 @@ class MeshSQL:
     def __init__(self, statements: StatementCache, cursor_factory) -> None:
         self.st = statements
         self.cursor = cursor_factory
+        self._pg_sql: dict[tuple, str] = {}
 
     # -- loads -----------------------------------------------------------
 
-    def _he_select(self):
-        h = schema.halfedges
-        return sa.select(*(h.c[name] for name in _HE_COLS))
+    def load(self, mesh_id: int, want: dict[str, list[int]]) -> list[tuple]:
+        """Rows for every kind of request in ``want``, in one statement.
 
-    def halfedges(self, mesh_id: int, ids: Iterable[int]) -> list[tuple]:
-        h = schema.halfedges
-        return self.st.rows_in(
-            self.cursor(),
-            "he_by_id",
-            lambda ph: self._he_select().where(h.c.mesh_id == sa.bindparam("m"), h.c.id.in_(ph)),
-            {"m": mesh_id},
-            ids,
-        )
-
-    def polygon_halfedges(self, mesh_id: int, polygon_ids: Iterable[int]) -> list[tuple]:
-        h = schema.halfedges
-        return self.st.rows_in(
-            self.cursor(),
-            "he_by_polygon",
-            lambda ph: indexed_by(
-                self._he_select().where(h.c.mesh_id == sa.bindparam("m"), h.c.polygon.in_(ph)),
-                h,
-                "ix_halfedges_polygon",
-            ),
-            {"m": mesh_id},
-            polygon_ids,
-        )
-
-    def stars(self, mesh_id: int, vertex_ids: Iterable[int]) -> list[tuple]:
-        """Every half-edge leaving one of the vertices, and its twin."""
-        h = schema.halfedges
-
-        def build(ph):
-            out = self._he_select().where(h.c.mesh_id == sa.bindparam("m"), h.c.origin.in_(ph))
-            t = h.alias("t")
-            s = h.alias("s")
-            twins = (
-                sa.select(*(t.c[name] for name in _HE_COLS))
-                .select_from(s.join(t, sa.and_(t.c.mesh_id == s.c.mesh_id, t.c.id == s.c.twin)))
-                .where(s.c.mesh_id == sa.bindparam("m"), s.c.origin.in_(ph))
-            )
-            out = indexed_by(out, h, "ix_halfedges_origin")
-            twins = indexed_by(twins, s, "ix_halfedges_origin")
-            return sa.union_all(out, twins)
-
-        return self.st.rows_in(self.cursor(), "stars", build, {"m": mesh_id}, vertex_ids)
-
-    def _pairs(self, table: sa.Table, key: str, mesh_id: int, ids: Iterable[int]) -> list[tuple]:
-        return self.st.rows_in(
-            self.cursor(),
-            key,
-            lambda ph: sa.select(table.c.id, table.c.halfedge).where(
-                table.c.mesh_id == sa.bindparam("m"), table.c.id.in_(ph)
-            ),
-            {"m": mesh_id},
-            ids,
-        )
-
-    def vertices(self, mesh_id: int, ids: Iterable[int]) -> list[tuple]:
-        return self._pairs(schema.vertices, "v_by_id", mesh_id, ids)
-
-    def edges(self, mesh_id: int, ids: Iterable[int]) -> list[tuple]:
-        return self._pairs(schema.edges, "e_by_id", mesh_id, ids)
-
-    def polygons(self, mesh_id: int, ids: Iterable[int]) -> list[tuple]:
-        return self._pairs(schema.polygons, "p_by_id", mesh_id, ids)
+        ``want`` maps a part to its ids: ``"vertices"``, ``"halfedges"``,
+        ``"stars"`` (vertex rows, their outgoing half-edges and those
+        half-edges' twins), ``"edges"`` (edge rows and both half-edges) and
+        ``"polygons"`` (polygon rows and their half-edges). Each row is
+        ``(kind, id, ...)`` with kind `K_VERTEX` ``(id, halfedge)``, `K_HALFEDGE`
+        ``(id, origin, next, prev, twin, edge, polygon)``, `K_EDGE` or
+        `K_POLYGON` ``(id, halfedge)``, padded with NULLs. Each id list is
+        bucketed (`hestore.statements.in_list_bucket`), so a handful of
+        compiled statements serve every operation.
+        """
+        parts = [(name, ids) for name, ids in want.items() if ids]
+        if not parts:
+            return []
+        sizes = tuple((name, in_list_bucket(len(ids))) for name, ids in parts)
+        if any(len(ids) > MAX_IN for _, ids in parts):
+            rows: list[tuple] = []
+            for name, ids in parts:
+                for start in range(0, len(ids), MAX_IN):
+                    rows.extend(self.load(mesh_id, {name: ids[start : start + MAX_IN]}))
+            return rows
+        stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
+        values: dict[str, Any] = {"m": mesh_id}
+        for name, ids in parts:
+            size = dict(sizes)[name]
+            last = ids[-1]
+            for k in range(size):
+                values[f"{name}{k}"] = ids[k] if k < len(ids) else last
+        return stmt.rows(self.cursor(), values)
 
     # -- writes ----------------------------------------------------------
 
-    def _insert(self, table: sa.Table):
-        return self.st.get(("ins", table.name), lambda: table.insert())
-
-    def _delete(self, table: sa.Table):
-        return self.st.get(
-            ("del", table.name),
-            lambda: table.delete().where(
-                table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i")
-            ),
-        )
-
     def write(self, mesh_id: int, changes: dict[str, Any], counters: tuple, bump: int) -> None:
-        """Write one flush worth of changes and the mesh's counters."""
-        cur = self.cursor()
+        """Write one flush worth of changes and the mesh's counters.
+
+        One statement per table and kind of change: an ``executemany`` on
+        SQLite (in-process, so a row costs about a microsecond), and on
+        PostgreSQL a single statement over ``unnest``-ed arrays, so the server
+        does one set-based write instead of one round of work per row.
+        """
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-        m = mesh_id
+        write = self._write_pg if self.st.dialect.name == "postgresql" else self._write_many
         for table, key in ((v, "v"), (h, "he"), (e, "e"), (p, "p")):
-            self._delete(table).run_many(cur, ({"m": m, "i": i} for i in changes[key + "_del"]))
-        self._insert(v).run_many(
-            cur,
-            (
-                {"mesh_id": m, "id": i, "halfedge": he, "x": xyz[0], "y": xyz[1], "z": xyz[2]}
-                for i, he, xyz in changes["v_ins"]
-            ),
-        )
-        self._insert(h).run_many(
-            cur,
-            (
-                {"mesh_id": m, "id": i, "origin": r[0], "next": r[1], "prev": r[2], "twin": r[3], "edge": r[4], "polygon": r[5]}
-                for i, r in changes["he_ins"]
-            ),
-        )
+            write(mesh_id, table, "delete", ("id",), [(i,) for i in changes[key + "_del"]])
+        write(mesh_id, v, "insert", ("id", "halfedge", "x", "y", "z"), [(i, he) + tuple(xyz) for i, he, xyz in changes["v_ins"]])
+        write(mesh_id, h, "insert", _HE_COLS, [(i,) + r for i, r in changes["he_ins"]])
         for table, key in ((e, "e"), (p, "p")):
-            self._insert(table).run_many(
-                cur, ({"mesh_id": m, "id": i, "halfedge": he} for i, he in changes[key + "_ins"])
-            )
-        upd_he = self.st.get(
-            "upd_he",
-            lambda: h.update()
-            .where(h.c.mesh_id == sa.bindparam("m"), h.c.id == sa.bindparam("i"))
-            .values(next=sa.bindparam("n"), prev=sa.bindparam("pv"), polygon=sa.bindparam("f")),
-        )
-        upd_he.run_many(
-            cur, ({"m": m, "i": i, "n": r[1], "pv": r[2], "f": r[5]} for i, r in changes["he_upd"])
-        )
-        upd_v = self.st.get(
-            "upd_v",
-            lambda: v.update()
-            .where(v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i"))
-            .values(halfedge=sa.bindparam("he")),
-        )
-        upd_v.run_many(cur, ({"m": m, "i": i, "he": he} for i, he in changes["v_upd"]))
+            write(mesh_id, table, "insert", ("id", "halfedge"), changes[key + "_ins"])
+        write(mesh_id, h, "update", ("id", "next", "prev", "polygon"), [(i, r[1], r[2], r[5]) for i, r in changes["he_upd"]])
+        write(mesh_id, v, "update", ("id", "halfedge"), changes["v_upd"])
         ms = schema.meshes
         upd_m = self.st.get(
             "upd_mesh",
@@ -202,7 +190,49 @@ class MeshSQL:
                 revision=ms.c.revision + sa.bindparam("bump"),
             ),
         )
-        upd_m.run(cur, {"m": m, "nv": counters[0], "ne": counters[1], "np": counters[2], "bump": bump})
+        upd_m.run(self.cursor(), {"m": mesh_id, "nv": counters[0], "ne": counters[1], "np": counters[2], "bump": bump})
+
+    def _write_many(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
+        if not rows:
+            return
+
+        def build():
+            key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("id")
+            if what == "delete":
+                return table.delete().where(*key)
+            if what == "update":
+                return table.update().where(*key).values({c: sa.bindparam(c) for c in cols[1:]})
+            return table.insert().values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
+
+        stmt = self.st.get((what, table.name, cols), build)
+        stmt.run_many(self.cursor(), ({"m": mesh_id, **dict(zip(cols, row))} for row in rows))
+
+    def _write_pg(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
+        if not rows:
+            return
+        sql = self._pg_sql.get((what, table.name, cols))
+        if sql is None:
+            sql = self._pg_sql[(what, table.name, cols)] = _pg_statement(table, what, cols)
+        arrays = [list(column) for column in zip(*rows)]
+        self.cursor().execute(sql, [mesh_id, *arrays] if what == "insert" else [*arrays, mesh_id])
+
+
+def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
+    """PostgreSQL SQL writing many rows of ``table`` from one array per column."""
+    q = '"{}"'.format
+    types = ["double precision" if isinstance(table.c[c].type, sa.Float) else "bigint" for c in cols]
+    arrays = ", ".join(f"%s::{t}[]" for t in types)
+    name = q(table.name)
+    if what == "delete":
+        return f"DELETE FROM {name} WHERE {q('id')} = ANY(%s::bigint[]) AND {q('mesh_id')} = %s"
+    if what == "insert":
+        columns = ", ".join(q(c) for c in ("mesh_id",) + tuple(cols))
+        return f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
+    sets = ", ".join(f"{q(c)} = u.{q(c)}" for c in cols[1:])
+    return (
+        f"UPDATE {name} AS t SET {sets} FROM unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
+        f"WHERE t.{q('mesh_id')} = %s AND t.{q('id')} = u.{q('id')}"
+    )
 
 
 class UnitOfWork:
@@ -294,110 +324,97 @@ class UnitOfWork:
 
     # -- loading ---------------------------------------------------------
 
-    def _ingest_he(self, rows: Iterable[tuple]) -> None:
-        he, he0 = self._he, self._he0
-        for row in rows:
-            hid = row[0]
-            if hid not in he:
-                rec = tuple(row[1:])
-                he[hid] = rec
-                he0[hid] = rec
+    def load(
+        self,
+        *,
+        vertices: Iterable[int] = (),
+        halfedges: Iterable[int] = (),
+        stars: Iterable[int] = (),
+        edges: Iterable[int] = (),
+        polygons: Iterable[int] = (),
+    ) -> None:
+        """Cache whatever of these is not cached yet, in one query.
 
-    @staticmethod
-    def _ingest_pairs(current: dict, loaded: dict, rows: Iterable[tuple]) -> None:
-        for eid, he in rows:
-            if eid not in current:
-                current[eid] = he
-                loaded[eid] = he
-
-    def load_stars(self, vertex_ids: Iterable[int]) -> None:
-        """Cache the vertices and every half-edge leaving them (with twins)."""
-        want = [v for v in dict.fromkeys(vertex_ids) if v not in self._out]
+        ``stars`` are vertices whose every outgoing half-edge (and its twin)
+        is wanted; the others are elements by id (an edge or polygon with its
+        half-edges). Rows already cached are kept as they are: the cache holds
+        this transaction's edits, the database does not yet.
+        """
+        # Most calls find everything cached already: keep that path cheap.
+        out = self._out
+        star_ids = [v for v in stars if v not in out]
+        want = {}
+        if star_ids:
+            star_ids = want["stars"] = list(dict.fromkeys(star_ids))
+        for name, ids, cur in (
+            ("vertices", vertices, self._v),
+            ("halfedges", halfedges, self._he),
+            ("edges", edges, self._e),
+            ("polygons", polygons, self._p),
+        ):
+            if ids:
+                missing = [i for i in ids if i not in cur]
+                if name == "vertices" and star_ids:
+                    missing = [i for i in missing if i not in star_ids]
+                if missing:
+                    want[name] = list(dict.fromkeys(missing))
         if not want:
             return
-        self._ingest_pairs(self._v, self._v0, self.sql.vertices(self.mesh_id, [v for v in want if v not in self._v]))
-        rows = self.sql.stars(self.mesh_id, want)
-        self._ingest_he(rows)
-        wanted = set(want)
-        outs: dict[int, set[int]] = {v: set() for v in want}
-        he = self._he
+        rows = self.sql.load(self.mesh_id, want)
+        he, he0 = self._he, self._he0
+        by_kind = ((self._v, self._v0), None, (self._e, self._e0), (self._p, self._p0))
+        outs: dict[int, set[int]] = {v: set() for v in star_ids}
         for row in rows:
-            hid = row[0]
-            if row[1] in wanted and he[hid] is not GONE:
-                outs[row[1]].add(hid)
+            kind, i = row[0], row[1]
+            if kind == K_HALFEDGE:
+                if i not in he:
+                    he[i] = he0[i] = row[2:]
+                if row[2] in outs and he[i] is not GONE:
+                    outs[row[2]].add(i)
+            else:
+                cur, loaded = by_kind[kind]
+                if i not in cur:
+                    cur[i] = loaded[i] = row[2]
+        # Remember what does not exist, so it is not asked for again.
+        for name, cur in (("stars", self._v), ("vertices", self._v), ("halfedges", he), ("edges", self._e), ("polygons", self._p)):
+            for i in want.get(name, ()):
+                cur.setdefault(i, _ABSENT)
         self._out.update(outs)
-
-    def load_polygons(self, polygon_ids: Iterable[int]) -> None:
-        """Cache the polygons and their half-edges (as stored)."""
-        want = [p for p in dict.fromkeys(polygon_ids) if p not in self._p]
-        if want:
-            self._ingest_pairs(self._p, self._p0, self.sql.polygons(self.mesh_id, want))
-            self._ingest_he(self.sql.polygon_halfedges(self.mesh_id, want))
-
-    def load_edges(self, edge_ids: Iterable[int]) -> None:
-        """Cache the edges and their half-edges."""
-        want = [e for e in dict.fromkeys(edge_ids) if e not in self._e]
-        if want:
-            self._ingest_pairs(self._e, self._e0, self.sql.edges(self.mesh_id, want))
-            self.load_halfedges([h for e in want for h in (2 * e, 2 * e + 1)])
-            for e in want:
-                if e in self._e and self._e[e] is not GONE:
-                    h = self._e[e]
-                    self.load_halfedges([h, self.he(h)[TWIN]])
-
-    def load_halfedges(self, ids: Iterable[int]) -> None:
-        want = [h for h in dict.fromkeys(ids) if h not in self._he]
-        if want:
-            self._ingest_he(self.sql.halfedges(self.mesh_id, want))
-            for h in want:
-                self._he.setdefault(h, _ABSENT)
-
-    def load_vertices(self, ids: Iterable[int]) -> None:
-        want = [v for v in dict.fromkeys(ids) if v not in self._v]
-        if want:
-            self._ingest_pairs(self._v, self._v0, self.sql.vertices(self.mesh_id, want))
-            for v in want:
-                self._v.setdefault(v, _ABSENT)
 
     # -- reads -----------------------------------------------------------
 
     def he(self, h: int) -> tuple:
         """The record ``(origin, next, prev, twin, edge, polygon)`` of half-edge ``h``."""
-        rec = self._he.get(h, None)
+        rec = self._he.get(h)
         if rec is None:
-            self.load_halfedges([h])
+            self.load(halfedges=(h,))
             rec = self._he[h]
         if rec is GONE or rec is _ABSENT:
             raise ElementNotFoundError(f"half-edge {h} does not exist in this mesh")
         return rec
 
-    def has_vertex(self, v: int) -> bool:
-        if v not in self._v:
-            self.load_vertices([v])
-        rec = self._v[v]
-        return rec is not GONE and rec is not _ABSENT
-
     def vhe(self, v: int) -> int | None:
         """The half-edge of vertex ``v`` (``None`` if isolated)."""
-        if v not in self._v:
-            self.load_vertices([v])
-        rec = self._v[v]
+        rec = self._v.get(v, _ABSENT)
+        if rec is _ABSENT and v not in self._v:
+            self.load(vertices=(v,))
+            rec = self._v[v]
         if rec is GONE or rec is _ABSENT:
             raise ElementNotFoundError(f"vertex {v} does not exist in this mesh")
         return rec
 
     def edge_he(self, e: int) -> int:
         if e not in self._e:
-            self.load_edges([e])
-        rec = self._e.get(e, _ABSENT)
+            self.load(edges=(e,))
+        rec = self._e[e]
         if rec is GONE or rec is _ABSENT:
             raise ElementNotFoundError(f"edge {e} does not exist in this mesh")
         return rec
 
     def polygon_he(self, p: int) -> int:
         if p not in self._p:
-            self.load_polygons([p])
-        rec = self._p.get(p, _ABSENT)
+            self.load(polygons=(p,))
+        rec = self._p[p]
         if rec is GONE or rec is _ABSENT:
             raise ElementNotFoundError(f"polygon {p} does not exist in this mesh")
         return rec
@@ -405,14 +422,12 @@ class UnitOfWork:
     def outgoing(self, v: int) -> set[int]:
         """Ids of the half-edges leaving ``v`` (a set; no rotation order)."""
         if v not in self._out:
+            self.load(stars=(v,))
             self.vhe(v)
-            self.load_stars([v])
         return self._out[v]
 
     def corrupt(self, code: str, message: str) -> InvariantViolationError:
         """The error to raise when stored data is found broken mid-operation."""
-        from hestore.validation import Violation
-
         return InvariantViolationError([Violation(code, "halfedge", (), message)])
 
     # -- writes ----------------------------------------------------------

@@ -233,7 +233,8 @@ def _table_columns(table: sa.Table) -> list:
     null = sa.literal(-1, sa.BigInteger)
     c = table.c
     if table is schema.halfedges:
-        return [c.id, c.origin, c.next, c.prev, c.twin, c.edge, sa.cast(sa.func.coalesce(c.polygon, null), sa.BigInteger)]
+        polygon = sa.cast(sa.func.coalesce(c.polygon, null), sa.BigInteger)
+        return [c.id, c.origin, c.next, c.prev, c.twin, c.edge, polygon]
     if table is schema.vertices:
         return [c.id, sa.cast(sa.func.coalesce(c.halfedge, null), sa.BigInteger)]
     return [c.id, c.halfedge]
@@ -625,7 +626,7 @@ def _normalized(arrays: TopologyArrays) -> TopologyArrays:
 class _Checker:
     """Shared lookups of one `check_arrays` call; one method per code.
 
-    Each method returns the `_Batch` es of its code. A comparison that would
+    Each method returns its code's batches. A comparison that would
     have to follow a reference to a missing element is skipped: that
     reference is reported once, by `REF`.
     """
