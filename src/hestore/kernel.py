@@ -151,8 +151,9 @@ def _check_edge(uow: UnitOfWork, a: int, b: int) -> None:
     uow.vhe(b)
     if a == b and not uow.allow_loops:
         raise PolicyError(f"vertex {a}: this mesh does not allow self-loop edges", (("vertex", a),))
-    if not uow.allow_multi_edges and _edges_between(uow, a, b):
-        e = uow.he(_edges_between(uow, a, b)[0])[EDGE]
+    existing = [] if uow.allow_multi_edges else _edges_between(uow, a, b)
+    if existing:
+        e = uow.he(existing[0])[EDGE]
         raise PolicyError(
             f"vertices {a} and {b} are already joined by edge {e}; this mesh does not allow parallel edges",
             (("vertex", a), ("vertex", b), ("edge", e)),
@@ -232,20 +233,102 @@ def add_polygon(uow: UnitOfWork, loop: Sequence[int]) -> int:
     n = len(loop)
     members = frozenset(loop)
     corners = [(h, loop[(i + 1) % n]) for i, h in enumerate(loop)]
-    for h, nxt in corners:
-        if not make_adjacent(uow, h, nxt, members):
-            raise _complex_vertex(uow, h, nxt)
-    for h, nxt in corners:
-        # A later corner may only have reordered what an earlier one linked if
-        # the loop meets itself; then no order of the fans makes it a polygon.
-        if uow.he(h)[NEXT] != nxt:
-            raise _complex_vertex(uow, h, nxt)
+    mark = uow.mark()
+    if not (
+        all(make_adjacent(uow, h, nxt, members) for h, nxt in corners)
+        and all(uow.he(h)[NEXT] == nxt for h, nxt in corners)
+    ):
+        # The seed's corner-by-corner reordering depends on where the loop
+        # starts when it meets a vertex twice; its rule ("if and only if the
+        # links can be reordered") does not. Decide that rule exactly.
+        uow.rollback_to(mark)
+        _arrange_fans(uow, corners)
     p = uow.new_polygon(loop[0])
     for h in loop:
         uow.set_polygon(h, p)
     for v in dict.fromkeys(uow.he(h)[ORIGIN] for h in loop):
         _adjust_outgoing(uow, v)
     return p
+
+
+def _fans(uow: UnitOfWork, v: int) -> list[list[int]]:
+    """The fans around ``v``: runs of outgoing half-edges joined by polygons.
+
+    Consecutive outgoing half-edges ``o`` and ``next(twin(o))`` are in one fan
+    when the wedge between them has a polygon; a free wedge ends a fan. Fans
+    can be put around the vertex in any order without touching a polygon.
+    """
+    start = uow.vhe(v)
+    rotation = [start]
+    h = uow.he(uow.he(start)[TWIN])[NEXT]
+    while h != start:
+        rotation.append(h)
+        if len(rotation) > len(uow.outgoing(v)):
+            raise uow.corrupt("V_ROTATION", f"the rotation around vertex {v} does not close")
+        h = uow.he(uow.he(h)[TWIN])[NEXT]
+    free = [k for k, o in enumerate(rotation) if uow.he(uow.he(o)[TWIN])[POLYGON] is None]
+    if not free:
+        return [rotation]
+    first = free[-1] + 1  # a fan starts right after a free wedge
+    rotation = rotation[first:] + rotation[:first]
+    fans, current = [], []
+    for o in rotation:
+        current.append(o)
+        if uow.he(uow.he(o)[TWIN])[POLYGON] is None:
+            fans.append(current)
+            current = []
+    return fans
+
+
+def _arrange_fans(uow: UnitOfWork, corners: list[tuple[int, int]]) -> None:
+    """Relink every corner vertex so that ``next(h) == nxt`` for each corner.
+
+    Each corner asks that the fan ending with ``twin(h)`` be followed by the
+    fan starting with ``nxt``. These successor constraints are satisfiable
+    exactly when they form chains, or one cycle through every fan of the
+    vertex; the fans are then put around the vertex in that order (chains in
+    their present order). Raises `NonManifoldError` otherwise, before
+    changing anything.
+    """
+    at: dict[int, list[tuple[int, int]]] = {}
+    for h, nxt in corners:
+        at.setdefault(uow.he(nxt)[ORIGIN], []).append((h, nxt))
+    links: list[tuple[int, int]] = []
+    for v, vcorners in at.items():
+        fans = _fans(uow, v)
+        ending = {fan[-1]: i for i, fan in enumerate(fans)}
+        starting = {fan[0]: i for i, fan in enumerate(fans)}
+        succ: dict[int, int] = {}
+        pred: dict[int, int] = {}
+        for h, nxt in vcorners:
+            a, b = ending.get(uow.he(h)[TWIN]), starting.get(nxt)
+            if a is None or b is None or a in succ or b in pred:
+                raise _complex_vertex(uow, h, nxt)
+            succ[a], pred[b] = b, a
+        order: list[int] = []
+        for i in range(len(fans)):
+            if i not in pred:
+                while i is not None:
+                    order.append(i)
+                    i = succ.get(i)
+        if len(order) < len(fans):
+            # Some fans lie on a cycle of constraints; that is only possible
+            # when the cycle is the whole vertex.
+            if order or len(pred) != len(fans):
+                h, nxt = vcorners[0]
+                raise _complex_vertex(uow, h, nxt)
+            i = 0
+            while not (order and i == 0):
+                order.append(i)
+                i = succ[i]
+            if len(order) < len(fans):  # several cycles of fans
+                h, nxt = vcorners[0]
+                raise _complex_vertex(uow, h, nxt)
+        for k, i in enumerate(order):
+            after = fans[order[(k + 1) % len(order)]]
+            links.append((uow.he(fans[i][-1])[TWIN], after[0]))
+    for a, b in links:
+        uow.link(a, b)
 
 
 def _complex_vertex(uow: UnitOfWork, h: int, nxt: int) -> NonManifoldError:

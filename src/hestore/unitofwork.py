@@ -287,8 +287,18 @@ class UnitOfWork:
 
     def abort_operation(self) -> None:
         """Undo every change since `begin_operation`, newest first."""
-        undo, self._undo = self._undo or [], None
-        for entry in reversed(undo):
+        self.rollback_to(0)
+        self._undo = None
+
+    def mark(self) -> int:
+        """A point inside the current operation that `rollback_to` can return to."""
+        return len(self._undo) if self._undo is not None else 0
+
+    def rollback_to(self, mark: int) -> None:
+        """Undo the current operation's changes made since ``mark``, newest first."""
+        undo = self._undo or []
+        while len(undo) > mark:
+            entry = undo.pop()
             kind = entry[0]
             if kind == "set":
                 _, d, key, old = entry
