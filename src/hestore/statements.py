@@ -13,7 +13,7 @@ variants serve every call.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable
 
 import sqlalchemy as sa
 
@@ -125,32 +125,3 @@ class StatementCache:
         if prepared is None:
             prepared = self._cache[key] = Prepared(build(), self.dialect)
         return prepared
-
-    def rows_in(
-        self,
-        cursor: Any,
-        key: str,
-        build: Callable[[list], Any],
-        values: dict[str, Any],
-        ids: Sequence[int],
-    ) -> list[tuple]:
-        """Run a statement with an ``IN`` list over ``ids`` and return all rows.
-
-        ``build(placeholders)`` makes the statement from a list of
-        ``bindparam`` objects named ``i0``, ``i1``, ...; the list is padded to
-        its bucket size with the last id, which is harmless in an ``IN``.
-        """
-        out: list[tuple] = []
-        ids = list(ids)
-        for start in range(0, len(ids), MAX_IN):
-            chunk = ids[start : start + MAX_IN]
-            size = in_list_bucket(len(chunk))
-            prepared = self.get(
-                (key, size), lambda: build([sa.bindparam(f"i{k}") for k in range(size)])
-            )
-            params = dict(values)
-            last = chunk[-1]
-            for k in range(size):
-                params[f"i{k}"] = chunk[k] if k < len(chunk) else last
-            out.extend(prepared.rows(cursor, params))
-        return out

@@ -403,31 +403,25 @@ class UnitOfWork:
             raise ElementNotFoundError(f"half-edge {h} does not exist in this mesh")
         return rec
 
+    def _row(self, current: dict, part: str, i: int, what: str) -> Any:
+        if i not in current:
+            self.load(**{part: (i,)})
+        rec = current[i]
+        if rec is GONE or rec is _ABSENT:
+            raise ElementNotFoundError(f"{what} {i} does not exist in this mesh")
+        return rec
+
     def vhe(self, v: int) -> int | None:
         """The half-edge of vertex ``v`` (``None`` if isolated)."""
-        rec = self._v.get(v, _ABSENT)
-        if rec is _ABSENT and v not in self._v:
-            self.load(vertices=(v,))
-            rec = self._v[v]
-        if rec is GONE or rec is _ABSENT:
-            raise ElementNotFoundError(f"vertex {v} does not exist in this mesh")
-        return rec
+        return self._row(self._v, "vertices", v, "vertex")
 
     def edge_he(self, e: int) -> int:
-        if e not in self._e:
-            self.load(edges=(e,))
-        rec = self._e[e]
-        if rec is GONE or rec is _ABSENT:
-            raise ElementNotFoundError(f"edge {e} does not exist in this mesh")
-        return rec
+        """The half-edge of edge ``e``."""
+        return self._row(self._e, "edges", e, "edge")
 
     def polygon_he(self, p: int) -> int:
-        if p not in self._p:
-            self.load(polygons=(p,))
-        rec = self._p[p]
-        if rec is GONE or rec is _ABSENT:
-            raise ElementNotFoundError(f"polygon {p} does not exist in this mesh")
-        return rec
+        """The half-edge of polygon ``p``."""
+        return self._row(self._p, "polygons", p, "polygon")
 
     def outgoing(self, v: int) -> set[int]:
         """Ids of the half-edges leaving ``v`` (a set; no rotation order)."""
