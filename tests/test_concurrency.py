@@ -149,6 +149,17 @@ def _stop(processes) -> None:
             p.join(timeout=5)
 
 
+def _gather(procs, results) -> list:
+    """One report per worker; the workers are stopped; none may have failed."""
+    try:
+        reports = [_get(results) for _ in procs]
+    finally:
+        _stop(procs)
+    errors = [r for r in reports if r[0] != "ok"]
+    assert not errors, "\n".join(r[2] for r in errors)
+    return reports
+
+
 def _get(results, timeout: float = WAIT):
     try:
         return results.get(timeout=timeout)
@@ -170,12 +181,7 @@ def test_concurrent_writers_to_one_mesh_lose_nothing(db_url, n_workers, k):
     results = CTX.Queue()
     start = CTX.Barrier(n_workers)
     procs = [_run(_adder, db_url, w, k, start, results) for w in range(n_workers)]
-    try:
-        reports = [_get(results) for _ in procs]
-    finally:
-        _stop(procs)
-    errors = [r for r in reports if r[0] != "ok"]
-    assert not errors, "\n".join(r[2] for r in errors)
+    reports = _gather(procs, results)
     assert all(p.exitcode == 0 for p in procs)
 
     commits = sum(r[2] for r in reports)
@@ -433,12 +439,7 @@ def test_crossed_blocks_deadlock_loser_retries_and_nothing_is_lost(db_url, backe
     ready = CTX.Barrier(2)
     results = CTX.Queue()
     procs = [_run(_cross, db_url, "m", "n", ready, results), _run(_cross, db_url, "n", "m", ready, results)]
-    try:
-        reports = [_get(results) for _ in procs]
-    finally:
-        _stop(procs)
-    errors = [r for r in reports if r[0] != "ok"]
-    assert not errors, "\n".join(r[2] for r in errors)
+    reports = _gather(procs, results)
     with hestore.open(db_url) as store:
         for name in ("m", "n"):
             mesh = store.mesh(name)

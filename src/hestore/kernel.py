@@ -266,15 +266,14 @@ def _fans(uow: UnitOfWork, v: int) -> list[list[int]]:
         if len(rotation) > len(uow.outgoing(v)):
             raise uow.corrupt("V_ROTATION", f"the rotation around vertex {v} does not close")
         h = uow.he(uow.he(h)[TWIN])[NEXT]
-    free = [k for k, o in enumerate(rotation) if uow.he(uow.he(o)[TWIN])[POLYGON] is None]
-    if not free:
+    free = [uow.he(uow.he(o)[TWIN])[POLYGON] is None for o in rotation]  # the wedge after o
+    if not any(free):
         return [rotation]
-    first = free[-1] + 1  # a fan starts right after a free wedge
-    rotation = rotation[first:] + rotation[:first]
+    first = len(free) - free[::-1].index(True)  # a fan starts right after a free wedge
     fans, current = [], []
-    for o in rotation:
-        current.append(o)
-        if uow.he(uow.he(o)[TWIN])[POLYGON] is None:
+    for k in range(first, first + len(rotation)):
+        current.append(rotation[k % len(rotation)])
+        if free[k % len(rotation)]:
             fans.append(current)
             current = []
     return fans
@@ -311,19 +310,14 @@ def _arrange_fans(uow: UnitOfWork, corners: list[tuple[int, int]]) -> None:
                 while i is not None:
                     order.append(i)
                     i = succ.get(i)
-        if len(order) < len(fans):
-            # Some fans lie on a cycle of constraints; that is only possible
-            # when the cycle is the whole vertex.
-            if order or len(pred) != len(fans):
-                h, nxt = vcorners[0]
-                raise _complex_vertex(uow, h, nxt)
+        if not order:  # every fan has a predecessor: the constraints close into cycles
             i = 0
             while not (order and i == 0):
                 order.append(i)
                 i = succ[i]
-            if len(order) < len(fans):  # several cycles of fans
-                h, nxt = vcorners[0]
-                raise _complex_vertex(uow, h, nxt)
+        if len(order) < len(fans):
+            # Some fans lie on a cycle of constraints that is not the whole vertex.
+            raise _complex_vertex(uow, *vcorners[0])
         for k, i in enumerate(order):
             after = fans[order[(k + 1) % len(order)]]
             links.append((uow.he(fans[i][-1])[TWIN], after[0]))

@@ -151,8 +151,7 @@ class MeshSQL:
             return rows
         stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
         values: dict[str, Any] = {"m": mesh_id}
-        for name, ids in parts:
-            size = dict(sizes)[name]
+        for (name, ids), (_, size) in zip(parts, sizes):
             last = ids[-1]
             for k in range(size):
                 values[f"{name}{k}"] = ids[k] if k < len(ids) else last
