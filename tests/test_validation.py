@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hestore import schema
-from hestore import validation
+from hestore import columns, validation
 from hestore.errors import InvalidInputError
 from hestore.validation import (
     CODE_DESCRIPTIONS,
@@ -877,7 +877,7 @@ def test_load_arrays_round_trip_and_corruption(db_url, backend, monkeypatch):
         expected = sorted_arrays(arrays)
         for use_copy in _backend_uses_copy(backend):
             # small fetch blocks, so the chunked paths are exercised
-            monkeypatch.setattr(validation, "_FETCH_ROWS", 7)
+            monkeypatch.setattr(columns, "_FETCH_ROWS", 7)
             with engine.connect() as conn:
                 loaded = load_arrays(conn, mesh_id, use_copy=use_copy)
                 empty = load_arrays(conn, empty_id, use_copy=use_copy)

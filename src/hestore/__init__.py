@@ -34,6 +34,7 @@ from hestore.errors import (
     TopologyError,
     VertexNotFreeError,
 )
+from hestore.bulk import ImportReport, MeshArrays, SkippedPolygon
 from hestore.handles import Edge, HalfEdge, Polygon, Vertex
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
@@ -51,6 +52,9 @@ __all__ = [
     "Edge",
     "Polygon",
     "Violation",
+    "ImportReport",
+    "SkippedPolygon",
+    "MeshArrays",
     "HestoreError",
     "ElementNotFoundError",
     "MeshNotFoundError",

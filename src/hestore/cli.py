@@ -4,10 +4,17 @@
 ``$HESTORE_URL``, else ``./hestore.db`` (a bare path means a SQLite file).
 Each command is a subparser with a ``_cmd_*`` function; `main` parses,
 dispatches, and turns every error a user can cause (hestore's own, an
-unreachable or malformed database URL, an unknown schema revision) into one
-line on stderr and exit status 2.
+unreachable or malformed database URL, an unknown schema revision, a file
+that cannot be read or written) into one line on stderr and exit status 2.
+
+Commands: ``demo``, ``import FILE``, ``export NAME FILE``, ``list``,
+``info NAME``, ``check NAME``, ``db upgrade``, ``db current``.
 
 Exit status: 0 success, 1 ``check`` found violations, 2 error.
+
+``import`` and ``export`` report progress through `ProgressBar`, on stderr:
+a redrawn bar on a terminal, and only a plain final line elsewhere, so that
+logs carry no control characters. Results go to stdout.
 
 The ``db`` commands work below the store: `hestore.open` refuses a database
 whose schema is behind (that refusal is what tells users to run
@@ -17,19 +24,23 @@ whose schema is behind (that refusal is what tells users to run
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import os
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TextIO
 
 import sqlalchemy as sa
 from alembic.util.exc import CommandError
 
 import hestore
 from hestore import migrate
-from hestore.errors import HestoreError, SchemaVersionError
+from hestore.errors import HestoreError, MeshExistsError, SchemaVersionError
 
-__all__ = ["DEFAULT_URL", "main", "build_parser"]
+__all__ = ["DEFAULT_URL", "ProgressBar", "main", "build_parser"]
 
 #: The database used when neither ``--db`` nor ``$HESTORE_URL`` is given.
 DEFAULT_URL = "sqlite:///hestore.db"
@@ -73,6 +84,181 @@ def _sqlite_file_missing(url: str) -> Path | None:
     return None if path.exists() else path
 
 
+# -- progress ---------------------------------------------------------------
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False
+
+
+def _columns(stream: TextIO) -> int:
+    """The width of the terminal behind ``stream`` (80 when it cannot be told)."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns or 80
+    except (AttributeError, ValueError, OSError):  # no file descriptor, or not a terminal
+        return 80
+
+
+def _amount(n: int, unit: str | None) -> str:
+    """``n`` in ``unit``, for people: bytes in B/KiB/MiB/GiB, anything else counted."""
+    if unit == "bytes":
+        if n < 1024:
+            return f"{n} B"
+        value = float(n)
+        for prefix in "KMGT":
+            value /= 1024
+            if value < 1024 or prefix == "T":
+                return f"{value:.1f} {prefix}iB"
+    return f"{n:,} {unit}" if unit else ""
+
+
+def _progress_amount(done: int, total: int, unit: str) -> str:
+    """``done`` of ``total``, e.g. ``1.2 MiB of 4.9 MiB`` or ``1,000 of 20,000 rows``."""
+    if unit == "bytes":
+        return f"{_amount(done, unit)} of {_amount(total, unit)}"
+    return f"{done:,} of {_amount(total, unit)}"
+
+
+class ProgressBar:
+    """A one-line progress display, called as ``progress(stage, done, total)``.
+
+    On a terminal it redraws one line in place (with ``\\r``), at most once
+    per ``interval`` seconds: the stage, a bar, the percentage and the amount
+    done (``units`` names each stage's unit; ``"bytes"`` is shown in
+    KiB/MiB/GiB, a stage without a unit shows only the percentage). Anywhere
+    else (a pipe, a log file) it draws nothing while running, so the output
+    holds no control characters. Either way, `close` after success writes one
+    plain line: each stage with its amount and time. After a failure it
+    erases the bar and writes nothing, so that the error stays one line.
+
+    Use it as a context manager: leaving the block closes it, successfully
+    unless an exception is leaving too.
+
+    Parameters
+    ----------
+    stream : text stream, optional
+        Where to draw; default ``sys.stderr``.
+    units : dict, optional
+        Stage name to unit (``{"read": "bytes", "write": "rows"}``).
+    interval : float
+        Least time between two redraws, in seconds.
+    width : int
+        Characters in the bar itself.
+    clock : callable
+        Returns the time in seconds (`time.monotonic`; tests pass a fake).
+
+    Examples
+    --------
+    >>> import io
+    >>> out = io.StringIO()  # not a terminal: one plain line at the end
+    >>> with ProgressBar(out, units={"read": "bytes", "write": "rows"}, clock=lambda: 0.0) as bar:
+    ...     bar("read", 2048, 4096)
+    ...     bar("read", 4096, 4096)
+    ...     bar("write", 12000, 12000)
+    >>> out.getvalue()
+    'read 4.0 KiB in 0.0 s, write 12,000 rows in 0.0 s\\n'
+    """
+
+    def __init__(
+        self,
+        stream: TextIO | None = None,
+        *,
+        units: dict[str, str] | None = None,
+        interval: float = 0.1,
+        width: int = 24,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = _isatty(self.stream)
+        self._columns = _columns(self.stream) if self.tty else 80
+        self.units = dict(units or {})
+        self.interval = interval
+        self.width = width
+        self.clock = clock
+        self._started = clock()
+        # stage -> [done, total, time of its last call], in the order the stages began
+        self._stages: dict[str, list] = {}
+        self._stage: str | None = None
+        self._drawn_at: float | None = None
+        self._shown = 0  # characters of the line now on screen
+        self._closed = False
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        now = self.clock()
+        new_stage = stage != self._stage
+        if new_stage:
+            self._stage = stage
+            self._stages.pop(stage, None)  # a stage that comes back starts over, at the end
+        self._stages[stage] = [int(done), int(total), now]
+        # A new stage is always shown (there are a few); within one, at most every `interval`.
+        if self.tty and (new_stage or self._drawn_at is None or now - self._drawn_at >= self.interval):
+            # Never wider than the terminal: a wrapped line cannot be redrawn in place.
+            self._draw(self.line(stage, int(done), int(total))[: max(self._columns - 1, 1)])
+            self._drawn_at = now
+
+    def line(self, stage: str, done: int, total: int) -> str:
+        """The bar as drawn on a terminal, e.g. ``read  [######..................]  25%  1.0 MiB of 4.0 MiB``."""
+        done = min(max(done, 0), total) if total > 0 else done
+        fraction = done / total if total > 0 else 1.0
+        filled = int(fraction * self.width)
+        text = f"{stage:<5} [{'#' * filled}{'.' * (self.width - filled)}] {int(fraction * 100):3d}%"
+        unit = self.units.get(stage)
+        if unit:
+            text += "  " + _progress_amount(done, total, unit)
+        return text
+
+    def summary(self) -> str:
+        """Each stage with its amount and time, e.g. ``read 4.0 KiB in 0.1 s, build in 0.2 s``.
+
+        A stage's time runs from the previous stage's last call (or from the
+        bar's creation) to its own last call.
+        """
+        parts = []
+        since = self._started
+        for stage, (done, _total, last) in self._stages.items():
+            amount = _amount(done, self.units.get(stage))
+            seconds = max(last - since, 0.0)
+            parts.append(f"{stage} {amount} in {seconds:.1f} s" if amount else f"{stage} in {seconds:.1f} s")
+            since = last
+        return ", ".join(parts)
+
+    def _draw(self, text: str) -> None:
+        # Pad with spaces over what the previous line left on screen.
+        self.stream.write("\r" + text + " " * max(0, self._shown - len(text)))
+        self.stream.flush()
+        self._shown = len(text)
+
+    def close(self, ok: bool = True) -> None:
+        """Finish: the plain final line after success, nothing (the bar erased) after a failure."""
+        if self._closed:
+            return
+        self._closed = True
+        if ok and self._stages:
+            if self.tty:
+                self._draw(self.summary())
+                self.stream.write("\n")
+            else:
+                self.stream.write(self.summary() + "\n")
+        elif self.tty and self._shown:
+            self._draw("")
+            self.stream.write("\r")
+        self.stream.flush()
+
+    def __enter__(self) -> "ProgressBar":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(ok=exc_type is None)
+
+
+#: Units of the stages of `hestore.bulk`'s ``progress(stage, done, total)``.
+_IMPORT_UNITS = {"read": "bytes", "write": "rows"}
+_EXPORT_UNITS = {"write": "rows"}
+
+
 # -- commands ---------------------------------------------------------------
 
 
@@ -98,6 +284,105 @@ def _cmd_list(args: argparse.Namespace) -> int:
                 f"{name:<{width}}  {c.vertices} vertices, {c.edges} edges, "
                 f"{c.halfedges} half-edges, {c.polygons} polygons, revision {mesh.revision}"
             )
+    return 0
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    path = args.file
+    with _open(args) as store:
+        try:
+            with ProgressBar(units=_IMPORT_UNITS) as bar:
+                report = store.import_file(path, args.name, on_error=args.on_error, progress=bar)
+        except MeshExistsError:
+            # As hestore.bulk.import_file: the file name without its extension.
+            name = args.name if args.name is not None else os.path.splitext(os.path.basename(path))[0]
+            return _error(
+                f"a mesh named {name!r} already exists in {_shown(store.url)}; "
+                "import under another name with --name NAME"
+            )
+        except HestoreError as exc:
+            skipped = getattr(exc, "skipped", None)
+            if skipped is None:
+                raise
+            where = path if skipped.line is None else f"{path}:{skipped.line}"
+            return _error(
+                f"{where}: polygon {skipped.index}: {skipped.reason}; nothing was stored "
+                "(--on-error skip stores the mesh without such polygons)"
+            )
+    print(report.summary())
+    if report.skipped:
+        print(
+            f"hestore: warning: {len(report.skipped)} polygon(s) skipped (--on-error skip); "
+            f"mesh {report.mesh.name!r} was stored without them",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        counts = mesh.counts()
+        with ProgressBar(units=_EXPORT_UNITS) as bar:
+            mesh.export(args.file, binary=not args.ascii, progress=bar)
+    size = os.path.getsize(args.file)
+    print(
+        f"wrote {args.name!r} to {args.file}: {counts.vertices} vertices, "
+        f"{counts.polygons} polygons, {size} bytes"
+    )
+    return 0
+
+
+def _info(mesh: hestore.Mesh) -> dict:
+    """What ``info`` shows, as JSON-ready values; the text form is rendered from it.
+
+    Keys are the Python API's names (`hestore.Mesh` attributes, `hestore.Counts`
+    fields), so a new field is one more key here and one more label in
+    `_INFO_LABELS`.
+    """
+    info = {
+        "name": mesh.name,
+        "revision": mesh.revision,
+        "allow_loops": mesh.allow_loops,
+        "allow_multi_edges": mesh.allow_multi_edges,
+    }
+    info.update(dataclasses.asdict(mesh.counts()))
+    return info
+
+
+#: How ``info`` labels each key of `_info` in its text form (unlisted keys show as they are).
+_INFO_LABELS = {
+    "name": "name",
+    "revision": "revision",
+    "allow_loops": "self-loops",
+    "allow_multi_edges": "parallel edges",
+    "vertices": "vertices",
+    "halfedges": "half-edges",
+    "edges": "edges",
+    "polygons": "polygons",
+}
+
+
+def _info_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "allowed" if value else "forbidden"
+    if value is None:
+        return "-"
+    if isinstance(value, dict):
+        return ", ".join(f"{k}: {v}" for k, v in value.items()) or "-"
+    return str(value)
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        info = _info(store.mesh(args.name))
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    labels = {key: _INFO_LABELS.get(key, key) for key in info}
+    width = max(len(label) for label in labels.values()) + 1
+    for key, value in info.items():
+        print(f"{labels[key] + ':':<{width}}  {_info_value(value)}")
     return 0
 
 
@@ -209,8 +494,50 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.set_defaults(func=_cmd_demo)
 
+    imp = commands.add_parser(
+        "import",
+        help="import an OFF, OBJ or PLY file as a new mesh and print what was stored",
+        description="Import an OFF, OBJ or PLY file (ASCII or binary; the format comes from the "
+        "extension) as a new mesh, in one transaction, and print a report: counts, and the "
+        "polygons left out, if any. Progress goes to stderr.",
+    )
+    imp.add_argument("file", metavar="FILE", help="the file to read (.off, .obj or .ply)")
+    imp.add_argument(
+        "--name", metavar="N", help="the new mesh's name (default: the file name without its extension)"
+    )
+    imp.add_argument(
+        "--on-error",
+        choices=("raise", "skip"),
+        default="raise",
+        help="what to do with a polygon the half-edge structure cannot take: raise (the default) "
+        "stops with an error naming it and stores nothing; skip stores the mesh without it "
+        "and lists it in the report",
+    )
+    imp.set_defaults(func=_cmd_import)
+
+    exp = commands.add_parser(
+        "export",
+        help="write a mesh's vertices and polygons to an OFF, OBJ or PLY file",
+        description="Write a mesh's vertices (in id order) and polygons to FILE, in the format "
+        "its extension names (.off, .obj or .ply), replacing the file if it exists. Wire edges "
+        "are not written. Progress goes to stderr.",
+    )
+    exp.add_argument("name", metavar="NAME", help="the mesh to export")
+    exp.add_argument("file", metavar="FILE", help="the file to write (.off, .obj or .ply)")
+    exp.add_argument(
+        "--ascii", action="store_true", help="write ASCII PLY instead of binary (OFF and OBJ are always text)"
+    )
+    exp.set_defaults(func=_cmd_export)
+
     listing = commands.add_parser("list", help="list the meshes: counts and revision of each")
     listing.set_defaults(func=_cmd_list)
+
+    info = commands.add_parser(
+        "info", help="a mesh's revision, policy and counts of vertices, half-edges, edges and polygons"
+    )
+    info.add_argument("name", metavar="NAME", help="the mesh to describe")
+    info.add_argument("--json", action="store_true", help="print a JSON object instead of text")
+    info.set_defaults(func=_cmd_info)
 
     check = commands.add_parser(
         "check", help="check a mesh's invariants; exit status 1 and the violations when invalid"
@@ -283,6 +610,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + 13
     except HestoreError as exc:
+        return _error(str(exc))
+    except OSError as exc:
+        # A file that import cannot read or export cannot write.
+        if exc.filename is not None and exc.strerror:
+            return _error(f"{os.fsdecode(exc.filename)}: {exc.strerror}")
         return _error(str(exc))
     except CommandError as exc:
         return _error(f"cannot migrate {_shown(url)}: {exc}")

@@ -404,6 +404,28 @@ class Mesh:
         with self._store._editing(self._id) as uow:
             kernel.remove_vertex(uow, iv)
 
+    # -- bulk export ----------------------------------------------------------
+
+    def to_arrays(self):
+        """``(positions, polygons, vertex_ids)``; see `hestore.bulk.to_arrays`.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        >>> mesh.to_arrays().polygons.tolist()
+        [[0, 1, 2]]
+        """
+        from hestore import bulk
+
+        return bulk.to_arrays(self)
+
+    def export(self, path, **options) -> None:
+        """Write the mesh to an OFF, OBJ or PLY file; see `hestore.bulk.export`."""
+        from hestore import bulk
+
+        bulk.export(self, path, **options)
+
     # -- validation ---------------------------------------------------------
 
     def check(self) -> list["Violation"]:

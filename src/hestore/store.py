@@ -507,6 +507,26 @@ class Store:
             self._raw_exec("RELEASE SAVEPOINT hestore_create")
         return Mesh(self, mesh_id, name, bool(allow_loops), bool(allow_multi_edges))
 
+    def import_arrays(self, name: str, positions, polygons, *, on_error: str = "raise", **options):
+        """Store a polygon soup as a new mesh; see `hestore.bulk.import_arrays`.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).polygons
+        1
+        """
+        from hestore import bulk
+
+        return bulk.import_arrays(self, name, positions, polygons, on_error=on_error, **options)
+
+    def import_file(self, path, name: str | None = None, *, on_error: str = "raise", **options):
+        """Import an OFF, OBJ or PLY file as a new mesh; see `hestore.bulk.import_file`."""
+        from hestore import bulk
+
+        return bulk.import_file(self, path, name, on_error=on_error, **options)
+
     def mesh(self, name: str):
         """The mesh called ``name``.
 

@@ -67,15 +67,14 @@ V_ROTATION vertex 1: rotating from halfedge 1 leaves the vertex: next(twin(1)) =
 
 from __future__ import annotations
 
-import itertools
-from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
+from hestore.columns import read_columns
 from hestore.errors import InvalidInputError
 
 __all__ = [
@@ -223,11 +222,6 @@ _GROUPS = (
 # Loading
 
 
-_FETCH_ROWS = 65536
-
-_TABLES = (schema.halfedges, schema.vertices, schema.edges, schema.polygons)
-
-
 def _table_columns(table: sa.Table) -> list:
     """The columns `TopologyArrays` takes from ``table``: non-NULL bigints (NULL -> -1)."""
     null = sa.literal(-1, sa.BigInteger)
@@ -240,154 +234,7 @@ def _table_columns(table: sa.Table) -> list:
     return [c.id, c.halfedge]
 
 
-@contextmanager
-def _read_snapshot(connection: sa.Connection) -> Iterator[None]:
-    """Make the statements run inside the block see one committed state.
-
-    A connection already in a transaction is used as it is (its reads see its
-    own writes). An idle SQLite connection gets a deferred ``BEGIN`` (a read
-    snapshot in WAL mode), an idle autocommit psycopg connection ``BEGIN
-    ISOLATION LEVEL REPEATABLE READ READ ONLY``; both are rolled back after,
-    leaving the connection as it was.
-    """
-    dbapi = connection.connection.dbapi_connection
-    begin = None
-    if connection.dialect.name == "sqlite":
-        if not getattr(dbapi, "in_transaction", True):
-            begin = "BEGIN"
-    elif connection.dialect.name == "postgresql" and connection.dialect.driver == "psycopg":
-        if dbapi.autocommit and dbapi.info.transaction_status == 0:  # pq.TransactionStatus.IDLE
-            begin = "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
-    if begin is None:
-        yield
-        return
-    cursor = dbapi.cursor()
-    try:
-        cursor.execute(begin)
-        try:
-            yield
-        finally:
-            cursor.execute("ROLLBACK")
-    finally:
-        cursor.close()
-
-
-def _fetch_cursor(connection: sa.Connection, table: sa.Table, mesh_id: int) -> list[np.ndarray]:
-    """``SELECT ... WHERE mesh_id = ... ORDER BY id``, read from the DBAPI cursor in chunks.
-
-    Each chunk of rows is flattened with `numpy.fromiter` (no SQLAlchemy
-    ``Row`` objects) and split into columns at once, so the peak memory is
-    about one copy of the result.
-    """
-    columns = _table_columns(table)
-    ncols = len(columns)
-    stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id).order_by(table.c.id)
-    parts: list[list[np.ndarray]] = [[] for _ in range(ncols)]
-    result = connection.execute(stmt)
-    try:
-        cursor = result.cursor
-        while True:
-            rows = cursor.fetchmany(_FETCH_ROWS)
-            if not rows:
-                break
-            flat = np.fromiter(itertools.chain.from_iterable(rows), dtype=np.int64, count=len(rows) * ncols)
-            del rows
-            matrix = flat.reshape(-1, ncols)
-            for k in range(ncols):
-                parts[k].append(matrix[:, k].copy())
-    finally:
-        result.close()
-    out = []
-    for k in range(ncols):
-        out.append(np.concatenate(parts[k]) if parts[k] else np.empty(0, dtype=np.int64))
-        parts[k] = []
-    return out
-
-
-_PGCOPY_SIGNATURE = b"PGCOPY\n\xff\r\n\x00"
-_INT8_OID = 20
-_ARRAY_ITEM = np.dtype([("length", ">i4"), ("value", ">i8")])
-
-
-class _CopyFormatError(RuntimeError):
-    """The binary COPY stream is not laid out as expected."""
-
-
-def _decode_int8_arrays(view: memoryview, nfields: int) -> list[np.ndarray]:
-    """Decode a binary COPY stream of one row of ``nfields`` non-NULL-element ``bigint[]``."""
-
-    def int_at(offset: int, size: int) -> int:
-        if offset + size > len(view):
-            raise _CopyFormatError("truncated COPY stream")
-        return int.from_bytes(view[offset : offset + size], "big", signed=True)
-
-    if bytes(view[:11]) != _PGCOPY_SIGNATURE:
-        raise _CopyFormatError("not a binary COPY stream")
-    pos = 19 + int_at(15, 4)
-    if int_at(pos, 2) != nfields:
-        raise _CopyFormatError("unexpected number of fields")
-    pos += 2
-    out = []
-    for _ in range(nfields):
-        length = int_at(pos, 4)
-        pos += 4
-        if length == -1:  # array_agg over no rows is NULL
-            out.append(np.empty(0, dtype=np.int64))
-            continue
-        ndim, flags, elemtype = int_at(pos, 4), int_at(pos + 4, 4), int_at(pos + 8, 4)
-        if ndim == 0:
-            out.append(np.empty(0, dtype=np.int64))
-        elif ndim == 1 and flags == 0 and elemtype == _INT8_OID:
-            count = int_at(pos + 12, 4)
-            if 20 + count * _ARRAY_ITEM.itemsize != length:
-                raise _CopyFormatError("unexpected array layout")
-            items = np.frombuffer(view, dtype=_ARRAY_ITEM, count=count, offset=pos + 20)
-            if not (items["length"] == 8).all():
-                raise _CopyFormatError("unexpected array element")
-            out.append(items["value"].astype(np.int64))
-            del items
-        else:
-            raise _CopyFormatError("unexpected array header")
-        pos += length
-    if bytes(view[pos:]) != b"\xff\xff":
-        raise _CopyFormatError("unexpected end of COPY stream")
-    return out
-
-
-def _fetch_pg_copy(connection: sa.Connection, mesh_id: int) -> list[np.ndarray]:
-    """All four tables in one statement, through binary ``COPY`` (psycopg 3).
-
-    ``SELECT`` of one ``array_agg`` per column per table, the four one-row
-    aggregates joined into one row: a single statement, so one snapshot even
-    in autocommit mode, and one protocol message decoded with one
-    `numpy.frombuffer` per column (no Python object per element). Rows come in
-    storage order; the caller sorts them by id.
-    """
-    from_ = None
-    columns = []
-    for k, table in enumerate(_TABLES):
-        aggregated = (
-            sa.select(*(sa.func.array_agg(c).label(f"c{i}") for i, c in enumerate(_table_columns(table))))
-            .where(table.c.mesh_id == mesh_id)
-            .subquery(f"t{k}")
-        )
-        columns.extend(aggregated.c)
-        from_ = aggregated if from_ is None else from_.join(aggregated, sa.true())
-    stmt = sa.select(*columns).select_from(from_)
-    sql = str(stmt.compile(dialect=connection.dialect, compile_kwargs={"literal_binds": True}))
-    chunks = []
-    with connection.connection.dbapi_connection.cursor() as cursor:
-        with cursor.copy(f"COPY ({sql}) TO STDOUT (FORMAT BINARY)") as copy:
-            for data in copy:
-                chunks.append(data)
-    buf = chunks[0] if len(chunks) == 1 else b"".join(chunks)
-    del chunks
-    with memoryview(buf) as view:
-        return _decode_int8_arrays(view, len(columns))
-
-
-def _use_pg_copy(connection: sa.Connection) -> bool:
-    return connection.dialect.name == "postgresql" and connection.dialect.driver == "psycopg"
+_TABLES = (schema.halfedges, schema.vertices, schema.edges, schema.polygons)
 
 
 def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | None = None) -> TopologyArrays:
@@ -436,26 +283,8 @@ def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | Non
     >>> check_arrays(arrays)
     []
     """
-    mesh_id = int(mesh_id)
-    if use_copy is None:
-        use_copy = _use_pg_copy(connection)
-    if use_copy:
-        flat = _fetch_pg_copy(connection, mesh_id)
-    else:
-        flat = []
-        with _read_snapshot(connection):
-            for table in _TABLES:
-                flat.extend(_fetch_cursor(connection, table, mesh_id))
-    columns: list[np.ndarray] = []
-    start = 0
-    for _, names in _GROUPS:
-        cols = flat[start : start + len(names)]
-        start += len(names)
-        ids = cols[0]
-        if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
-            order = np.argsort(ids, kind="stable")
-            cols = [c[order] for c in cols]
-        columns.extend(cols)
+    tables = read_columns(connection, mesh_id, [(t, _table_columns(t)) for t in _TABLES], use_copy=use_copy)
+    columns = [col for table in tables for col in table]
     return TopologyArrays(*columns)
 
 

@@ -1,0 +1,379 @@
+"""Whole columns between SQL tables and numpy arrays.
+
+This module owns the set-based transfer of one mesh's rows: reading chosen
+columns of several tables as numpy arrays in one consistent snapshot
+(`read_columns`), and writing numpy columns as rows in large batches
+(`write_columns`). Validation, bulk export and the graph views read through
+it; bulk import writes through it. Nothing here builds a Python object per
+row except what the DBAPI driver itself demands.
+
+- PostgreSQL (psycopg 3): reads are one ``COPY (SELECT array_agg(...)) TO
+  STDOUT (FORMAT BINARY)`` statement decoded with `numpy.frombuffer`; writes
+  are binary ``COPY ... FROM STDIN`` buffers assembled with numpy structured
+  arrays.
+- SQLite and other drivers: reads fetch the DBAPI cursor in chunks into
+  `numpy.fromiter`; writes are the driver's ``executemany``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from contextlib import contextmanager
+from typing import Callable, Iterator, Mapping, Sequence
+
+import numpy as np
+import sqlalchemy as sa
+
+__all__ = ["read_columns", "write_columns", "uses_copy"]
+
+_FETCH_ROWS = 65536
+_WRITE_ROWS = 131072
+
+
+def uses_copy(dialect: sa.engine.Dialect) -> bool:
+    """Whether the binary ``COPY`` paths apply (PostgreSQL through psycopg 3)."""
+    return dialect.name == "postgresql" and dialect.driver == "psycopg"
+
+
+def _is_float(column) -> bool:
+    return isinstance(column.type, sa.Float)
+
+
+# --------------------------------------------------------------------------
+# Reading
+
+
+@contextmanager
+def _read_snapshot(connection: sa.Connection) -> Iterator[None]:
+    """Make the statements run inside the block see one committed state.
+
+    A connection already in a transaction is used as it is (its reads see its
+    own writes). An idle SQLite connection gets a deferred ``BEGIN`` (a read
+    snapshot in WAL mode), an idle autocommit psycopg connection ``BEGIN
+    ISOLATION LEVEL REPEATABLE READ READ ONLY``; both are rolled back after,
+    leaving the connection as it was.
+    """
+    dbapi = connection.connection.dbapi_connection
+    begin = None
+    if connection.dialect.name == "sqlite":
+        if not getattr(dbapi, "in_transaction", True):
+            begin = "BEGIN"
+    elif uses_copy(connection.dialect):
+        if dbapi.autocommit and dbapi.info.transaction_status == 0:  # pq.TransactionStatus.IDLE
+            begin = "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
+    if begin is None:
+        yield
+        return
+    cursor = dbapi.cursor()
+    try:
+        cursor.execute(begin)
+        try:
+            yield
+        finally:
+            cursor.execute("ROLLBACK")
+    finally:
+        cursor.close()
+
+
+def _fetch_cursor(connection: sa.Connection, table: sa.Table, columns: Sequence, mesh_id: int) -> list[np.ndarray]:
+    """``SELECT columns ... WHERE mesh_id = ... ORDER BY id``, read from the DBAPI cursor in chunks.
+
+    Each chunk of rows becomes one structured array with `numpy.fromiter`
+    (no SQLAlchemy ``Row`` objects) and is split into columns at once, so the
+    peak memory is about one copy of the result.
+    """
+    dtype = np.dtype([(f"c{k}", np.float64 if _is_float(c) else np.int64) for k, c in enumerate(columns)])
+    stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id).order_by(table.c.id)
+    parts: list[np.ndarray] = []
+    result = connection.execute(stmt)
+    try:
+        cursor = result.cursor
+        while True:
+            rows = cursor.fetchmany(_FETCH_ROWS)
+            if not rows:
+                break
+            parts.append(np.fromiter(rows, dtype=dtype, count=len(rows)))
+            del rows
+    finally:
+        result.close()
+    block = np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
+    del parts
+    return [np.ascontiguousarray(block[name]) for name in dtype.names]
+
+
+_PGCOPY_SIGNATURE = b"PGCOPY\n\xff\r\n\x00"
+_ELEMENT = {20: (">i8", np.int64), 701: (">f8", np.float64)}  # int8, float8 OIDs
+
+
+class _CopyFormatError(RuntimeError):
+    """The binary COPY stream is not laid out as expected."""
+
+
+def _decode_arrays(view: memoryview, dtypes: Sequence[type]) -> list[np.ndarray]:
+    """Decode a binary COPY stream of one row of non-NULL-element ``bigint[]`` / ``float8[]``."""
+
+    def int_at(offset: int, size: int) -> int:
+        if offset + size > len(view):
+            raise _CopyFormatError("truncated COPY stream")
+        return int.from_bytes(view[offset : offset + size], "big", signed=True)
+
+    if bytes(view[:11]) != _PGCOPY_SIGNATURE:
+        raise _CopyFormatError("not a binary COPY stream")
+    pos = 19 + int_at(15, 4)
+    if int_at(pos, 2) != len(dtypes):
+        raise _CopyFormatError("unexpected number of fields")
+    pos += 2
+    out = []
+    for want in dtypes:
+        length = int_at(pos, 4)
+        pos += 4
+        if length == -1:  # array_agg over no rows is NULL
+            out.append(np.empty(0, dtype=want))
+            continue
+        ndim, flags, elemtype = int_at(pos, 4), int_at(pos + 4, 4), int_at(pos + 8, 4)
+        if ndim == 0:
+            out.append(np.empty(0, dtype=want))
+        elif ndim == 1 and flags == 0 and _ELEMENT.get(elemtype, (None, None))[1] is want:
+            count = int_at(pos + 12, 4)
+            item = np.dtype([("length", ">i4"), ("value", _ELEMENT[elemtype][0])])
+            if 20 + count * item.itemsize != length:
+                raise _CopyFormatError("unexpected array layout")
+            items = np.frombuffer(view, dtype=item, count=count, offset=pos + 20)
+            if not (items["length"] == 8).all():
+                raise _CopyFormatError("unexpected array element")
+            out.append(items["value"].astype(want))
+            del items
+        else:
+            raise _CopyFormatError("unexpected array header")
+        pos += length
+    if bytes(view[pos:]) != b"\xff\xff":
+        raise _CopyFormatError("unexpected end of COPY stream")
+    return out
+
+
+def _as_8_bytes(column):
+    """The column as ``bigint`` or ``double precision``, the two element types `_decode_arrays` reads."""
+    return sa.cast(column, sa.Float(53) if _is_float(column) else sa.BigInteger)
+
+
+def _fetch_pg_copy(connection: sa.Connection, mesh_id: int, requests: Sequence) -> list[np.ndarray]:
+    """All requested tables in one statement, through binary ``COPY`` (psycopg 3).
+
+    ``SELECT`` of one ``array_agg`` per column per table, the one-row
+    aggregates joined into one row: a single statement, so one snapshot even
+    in autocommit mode, and one protocol message decoded with one
+    `numpy.frombuffer` per column. The aggregates of one table see its rows in
+    the same (storage) order; the caller sorts them by id.
+    """
+    from_ = None
+    columns = []
+    dtypes = []
+    for k, (table, cols) in enumerate(requests):
+        aggregated = (
+            sa.select(*(sa.func.array_agg(_as_8_bytes(c)).label(f"c{i}") for i, c in enumerate(cols)))
+            .where(table.c.mesh_id == mesh_id)
+            .subquery(f"t{k}")
+        )
+        columns.extend(aggregated.c)
+        dtypes.extend(np.float64 if _is_float(c) else np.int64 for c in cols)
+        from_ = aggregated if from_ is None else from_.join(aggregated, sa.true())
+    stmt = sa.select(*columns).select_from(from_)
+    sql = str(stmt.compile(dialect=connection.dialect, compile_kwargs={"literal_binds": True}))
+    chunks = []
+    with connection.connection.dbapi_connection.cursor() as cursor:
+        with cursor.copy(f"COPY ({sql}) TO STDOUT (FORMAT BINARY)") as copy:
+            for data in copy:
+                chunks.append(data)
+    buf = chunks[0] if len(chunks) == 1 else b"".join(chunks)
+    del chunks
+    with memoryview(buf) as view:
+        return _decode_arrays(view, dtypes)
+
+
+def read_columns(
+    connection: sa.Connection, mesh_id: int, requests: Sequence[tuple[sa.Table, Sequence]], *, use_copy: bool | None = None
+) -> list[list[np.ndarray]]:
+    """Read columns of several tables for one mesh, as one consistent state.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection to a database holding `hestore.schema`'s tables.
+    mesh_id : int
+        The ``meshes.id`` whose rows are read.
+    requests : sequence of (Table, sequence of column expressions)
+        For each table, the expressions to read; the first must be the
+        table's ``id``. Expressions must not be NULL (use ``coalesce``);
+        ``Float`` ones come back as float64, the others as int64.
+    use_copy : bool or None, optional
+        Force (True) or forbid (False) the PostgreSQL ``COPY`` path; by
+        default it is used on PostgreSQL with psycopg 3.
+
+    Returns
+    -------
+    list of list of ndarray
+        Per request, its columns, sorted by id.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore import schema
+    >>> engine = sa.create_engine("sqlite://")
+    >>> schema.metadata.create_all(engine)
+    >>> v = schema.vertices
+    >>> with engine.begin() as conn:
+    ...     _ = conn.execute(v.insert(), [{"mesh_id": 1, "id": i, "x": i / 2, "y": 0.0, "z": 0.0} for i in (2, 0, 1)])
+    ...     [[ids, xs]] = read_columns(conn, 1, [(v, [v.c.id, v.c.x])])
+    >>> ids.tolist(), xs.tolist()
+    ([0, 1, 2], [0.0, 0.5, 1.0])
+    """
+    mesh_id = int(mesh_id)
+    if use_copy is None:
+        use_copy = uses_copy(connection.dialect)
+    if use_copy:
+        flat = _fetch_pg_copy(connection, mesh_id, requests)
+    else:
+        flat = []
+        with _read_snapshot(connection):
+            for table, cols in requests:
+                flat.extend(_fetch_cursor(connection, table, cols, mesh_id))
+    out = []
+    start = 0
+    for _, cols in requests:
+        group = flat[start : start + len(cols)]
+        start += len(cols)
+        ids = group[0]
+        if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
+            order = np.argsort(ids, kind="stable")
+            group = [c[order] for c in group]
+        out.append(group)
+    return out
+
+
+# --------------------------------------------------------------------------
+# Writing
+
+
+def _is_null(values: np.ndarray) -> np.ndarray:
+    return np.isnan(values) if values.dtype.kind == "f" else values < 0
+
+
+def write_columns(
+    cursor,
+    dialect: sa.engine.Dialect,
+    table: sa.Table,
+    mesh_id: int,
+    columns: Mapping[str, np.ndarray],
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> None:
+    """Insert one row per array element: ``mesh_id`` and the given columns.
+
+    Parameters
+    ----------
+    cursor
+        A DBAPI cursor of the connection, inside the caller's transaction.
+    dialect : sqlalchemy.engine.Dialect
+        The connection's dialect.
+    table : sqlalchemy.Table
+        One of `hestore.schema`'s element tables.
+    mesh_id : int
+        Written into every row.
+    columns : mapping of column name to ndarray
+        Equal-length arrays. In a nullable column, ``-1`` (integers) or NaN
+        (floats) is written as NULL.
+    progress : callable, optional
+        Called with the number of rows written after each batch.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore import schema
+    >>> engine = sa.create_engine("sqlite://")
+    >>> schema.metadata.create_all(engine)
+    >>> with engine.begin() as conn:
+    ...     cur = conn.connection.dbapi_connection.cursor()
+    ...     write_columns(cur, engine.dialect, schema.edges, 3, {"id": np.arange(2), "halfedge": np.array([0, 2])})
+    ...     print(conn.execute(sa.select(schema.edges)).all())
+    [(3, 0, 0), (3, 1, 2)]
+    """
+    names = list(columns)
+    arrays = [np.asarray(columns[n]) for n in names]
+    nullable = [table.c[n].nullable for n in names]
+    n_rows = len(arrays[0]) if arrays else 0
+    if uses_copy(dialect):
+        _write_pg_copy(cursor, table, mesh_id, names, arrays, nullable, n_rows, progress)
+        return
+    marks = ", ".join(["?"] * (len(names) + 1)) if dialect.paramstyle == "qmark" else ", ".join(["%s"] * (len(names) + 1))
+    sql = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES ({marks})"
+    for start in range(0, n_rows, _WRITE_ROWS):
+        lists = []
+        for values, null_ok in zip(arrays, nullable):
+            chunk = values[start : start + _WRITE_ROWS]
+            nulls = _is_null(chunk) if null_ok else None
+            if nulls is not None and nulls.any():
+                boxed = chunk.astype(object)
+                boxed[nulls] = None
+                lists.append(boxed.tolist())
+            else:
+                lists.append(chunk.tolist())
+        cursor.executemany(sql, zip(itertools.repeat(mesh_id), *lists))
+        if progress is not None:
+            progress(min(start + _WRITE_ROWS, n_rows))
+
+
+_PG_TYPE = {sa.Integer: ">i4", sa.BigInteger: ">i8", sa.Float: ">f8"}
+
+
+def _pg_dtype(column: sa.Column) -> str:
+    for kind in (sa.BigInteger, sa.Float, sa.Integer):  # BigInteger is an Integer: ask it first
+        if isinstance(column.type, kind):
+            return _PG_TYPE[kind]
+    raise TypeError(f"no binary COPY layout for {column}")  # pragma: no cover - schema has no other types
+
+
+def _write_pg_copy(cursor, table, mesh_id, names, arrays, nullable, n_rows, progress) -> None:
+    """Binary ``COPY FROM STDIN``, one fixed row layout per pattern of NULLs.
+
+    A binary COPY row is its field count, then each field as a 4-byte length
+    and the big-endian value, or length -1 for NULL. Rows with the same NULL
+    columns share one layout, so each such group is one numpy structured
+    array written as raw bytes.
+    """
+    cols = [table.c.mesh_id] + [table.c[n] for n in names]
+    values = [np.full(n_rows, mesh_id, dtype=np.int64)] + arrays
+    nulls = [np.zeros(n_rows, dtype=bool)] + [
+        _is_null(a) if ok else np.zeros(n_rows, dtype=bool) for a, ok in zip(arrays, nullable)
+    ]
+    pattern = np.zeros(n_rows, dtype=np.int64)
+    for k, mask in enumerate(nulls):
+        pattern |= mask.astype(np.int64) << k
+    done = 0
+    with cursor.copy(f"COPY {table.name} ({', '.join(c.name for c in cols)}) FROM STDIN (FORMAT BINARY)") as copy:
+        copy.write(_PGCOPY_SIGNATURE + b"\x00\x00\x00\x00\x00\x00\x00\x00")
+        patterns = np.unique(pattern).tolist()
+        for pat in patterns:
+            rows = np.flatnonzero(pattern == pat) if len(patterns) > 1 else None
+            fields = [("count", ">i2")]
+            for k, col in enumerate(cols):
+                fields.append((f"l{k}", ">i4"))
+                if not (pat >> k) & 1:
+                    fields.append((f"v{k}", _pg_dtype(col)))
+            layout = np.dtype(fields)
+            total = n_rows if rows is None else len(rows)
+            for start in range(0, total, _WRITE_ROWS):
+                stop = min(start + _WRITE_ROWS, total)
+                take = slice(start, stop) if rows is None else rows[start:stop]
+                block = np.empty(stop - start, dtype=layout)
+                block["count"] = len(cols)
+                for k, col in enumerate(cols):
+                    if (pat >> k) & 1:
+                        block[f"l{k}"] = -1
+                    else:
+                        block[f"l{k}"] = 8 if layout[f"v{k}"].itemsize == 8 else 4
+                        block[f"v{k}"] = values[k][take]
+                copy.write(block.tobytes())
+                done += stop - start
+                if progress is not None:
+                    progress(done)
+        copy.write(b"\xff\xff")
