@@ -224,15 +224,17 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
     accepted = _settle_edge_uses(ok, corners, order)
     losers = ok & ~accepted
     built = _assemble(n_vertices, corners, order, accepted)
-    crowded = _crowded_vertices(n_vertices, built)
+    fans = _fan_ends(n_vertices, built)
+    crowded = _crowded_vertices(n_vertices, built, fans)
     if len(crowded):
         accepted = _replay(n_vertices, corners, ok, losers, crowded, refused, index_base)
         built = _assemble(n_vertices, corners, order, accepted)
-        assert not len(_crowded_vertices(n_vertices, built)), "replay left a crowded vertex"
+        fans = _fan_ends(n_vertices, built)
+        assert not len(_crowded_vertices(n_vertices, built, fans)), "replay left a crowded vertex"
     for p in np.flatnonzero(ok & ~accepted).tolist():
         if p not in refused:
             refused[p] = _edge_refusal(p, corners, order, accepted, index_base)
-    arrays = _link_boundaries(n_vertices, built)
+    arrays = _link_boundaries(n_vertices, built, fans)
     return Built(arrays, np.flatnonzero(accepted), [refused[p] for p in sorted(refused)])
 
 
@@ -300,6 +302,16 @@ def _runs(start: np.ndarray) -> np.ndarray:
     return np.maximum.accumulate(np.where(start, np.arange(len(start)), 0))
 
 
+def _cyclic_next(start: np.ndarray) -> np.ndarray:
+    """Each position's successor within its run, the last of a run wrapping to the first."""
+    n = len(start)
+    last = np.ones(n, dtype=bool)
+    last[:-1] = start[1:]
+    succ = np.arange(1, n + 1)
+    succ[last] = _runs(start)[last]
+    return succ
+
+
 def _settle_edge_uses(ok: np.ndarray, c: _Corners, order: np.ndarray) -> np.ndarray:
     """Which polygons win their directed pairs when added one by one in input order.
 
@@ -350,15 +362,11 @@ def _assemble(n_vertices: int, c: _Corners, order: np.ndarray, accepted: np.ndar
     use = order[accepted[c.poly[order]]]  # accepted corners, sorted by (pair, direction, input order)
     pair = c.slot[use] >> 1
     n = len(use)
-    first_in_pair = np.ones(n, dtype=bool)
-    first_in_pair[1:] = pair[1:] != pair[:-1]
-    group = np.cumsum(first_in_pair) - 1
+    first_in_pair = _starts(pair)
     starts = np.flatnonzero(first_in_pair)
     # Each pair holds one or two uses (capacity); the earlier one in input order owns 2e.
-    second = np.zeros(n, dtype=bool)
-    second[1:] = ~first_in_pair[1:]
     two = np.zeros(len(starts), dtype=bool)
-    two[group[second]] = True
+    two[(np.cumsum(first_in_pair) - 1)[~first_in_pair]] = True
     u0 = use[starts]
     u1 = np.where(two, use[np.minimum(starts + 1, n - 1)], -1)
     swap = two & (u1 < u0)
@@ -386,28 +394,23 @@ def _assemble(n_vertices: int, c: _Corners, order: np.ndarray, accepted: np.ndar
     polygon[he] = new_id[kept_poly]
     # Within a polygon the corners are consecutive, so next is the following
     # corner except at the polygon's last corner, which wraps to its first.
-    k = len(acc_pos)
-    starts_p = np.ones(k, dtype=bool)
-    starts_p[1:] = kept_poly[1:] != kept_poly[:-1]
-    first_of = _runs(starts_p)
-    ends_p = np.ones(k, dtype=bool)
-    ends_p[:-1] = starts_p[1:]
-    succ = np.arange(1, k + 1)
-    succ[ends_p] = first_of[ends_p]
+    starts_p = _starts(kept_poly)
+    succ = _cyclic_next(starts_p)
     nxt[he] = he[succ]
     prv[he[succ]] = he
     return _Assembly(origin, nxt, prv, polygon, he[starts_p])
 
 
-def _fan_ends(a: _Assembly, max_steps: int) -> tuple[np.ndarray, np.ndarray]:
+def _fan_ends(n_vertices: int, a: _Assembly) -> tuple[np.ndarray, np.ndarray]:
     """Follow ``twin(prev(h))`` from every half-edge until a free one.
 
     Returns ``(end, closed)``: for a half-edge on an open fan, ``end`` is the
     fan's free outgoing half-edge; on a closed fan (a cycle), ``closed`` is
     True and ``end`` is the cycle's smallest half-edge. Pointer doubling:
-    ``log2`` of the longest fan steps, each a numpy gather.
+    ``log2`` of the largest vertex degree steps, each a numpy gather.
     """
     n = len(a.origin)
+    max_steps = int(np.bincount(a.origin, minlength=n_vertices).max()) if n else 0
     ids = np.arange(n, dtype=_I64)
     free = a.polygon < 0
     ptr = np.where(free, ids, a.prev ^ 1)
@@ -421,26 +424,22 @@ def _fan_ends(a: _Assembly, max_steps: int) -> tuple[np.ndarray, np.ndarray]:
     return np.where(closed, low, ptr), closed
 
 
-def _crowded_vertices(n_vertices: int, a: _Assembly) -> np.ndarray:
+def _crowded_vertices(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Vertices where a closed fan meets anything else (seed 000's restriction)."""
-    if not len(a.origin):
-        return np.zeros(0, dtype=_I64)
-    degree = np.bincount(a.origin, minlength=n_vertices)
-    end, closed = _fan_ends(a, int(degree.max()))
+    end, closed = fans
     ids = np.arange(len(a.origin))
     cycles = np.bincount(a.origin[closed & (end == ids)], minlength=n_vertices)
     opens = np.bincount(a.origin[a.polygon < 0], minlength=n_vertices)
     return np.flatnonzero((cycles > 1) | ((cycles > 0) & (opens > 0)))
 
 
-def _link_boundaries(n_vertices: int, a: _Assembly) -> HalfEdgeArrays:
+def _link_boundaries(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.ndarray]) -> HalfEdgeArrays:
     """Link the free half-edges around each vertex and choose ``vertex.halfedge``."""
     nxt, prv = a.next, a.prev
     free = a.polygon < 0
     vhe = np.full(n_vertices, -1, dtype=_I64)
     if len(a.origin):
-        degree = np.bincount(a.origin, minlength=n_vertices)
-        end, _closed = _fan_ends(a, int(degree.max()))
+        end = fans[0]
         # A fan starts at a polygon half-edge whose twin is free; that twin
         # arrives at the vertex and is the fan's free incoming half-edge.
         start = np.flatnonzero(~free & free[np.arange(len(free)) ^ 1])
@@ -449,14 +448,7 @@ def _link_boundaries(n_vertices: int, a: _Assembly) -> HalfEdgeArrays:
         g = start ^ 1
         order = np.lexsort((f, v))
         v, f, g = v[order], f[order], g[order]
-        m = len(v)
-        first = np.ones(m, dtype=bool)
-        first[1:] = v[1:] != v[:-1]
-        head = _runs(first)
-        last = np.ones(m, dtype=bool)
-        last[:-1] = first[1:]
-        after = np.arange(1, m + 1)
-        after[last] = head[last]
+        after = _cyclic_next(_starts(v))
         # Fan i's free incoming half-edge continues with fan i+1's free outgoing one.
         nxt[g] = f[after]
         prv[f[after]] = g

@@ -17,7 +17,6 @@ row except what the DBAPI driver itself demands.
 
 from __future__ import annotations
 
-import itertools
 from contextlib import contextmanager
 from typing import Callable, Iterator, Mapping, Sequence
 
@@ -304,22 +303,48 @@ def write_columns(
     if uses_copy(dialect):
         _write_pg_copy(cursor, table, mesh_id, names, arrays, nullable, n_rows, progress)
         return
-    marks = ", ".join(["?"] * (len(names) + 1)) if dialect.paramstyle == "qmark" else ", ".join(["%s"] * (len(names) + 1))
-    sql = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES ({marks})"
+    _write_multirow(cursor, dialect, table, int(mesh_id), names, arrays, nullable, n_rows, progress)
+
+
+#: Rows per multi-row ``INSERT``: SQLite parses one statement for a thousand
+#: rows instead of stepping one statement per row, which nearly halves the time.
+_ROWS_PER_INSERT = 1000
+
+
+def _variable_limit(cursor) -> int:
+    """How many parameters one statement may take (999, SQLite's limit before 3.32, if unknown)."""
+    try:
+        import sqlite3
+
+        return cursor.connection.getlimit(sqlite3.SQLITE_LIMIT_VARIABLE_NUMBER)
+    except (AttributeError, ImportError):
+        return 999
+
+
+def _write_multirow(cursor, dialect, table, mesh_id, names, arrays, nullable, n_rows, progress) -> None:
+    """Multi-row ``INSERT ... VALUES (...), (...)``, the rest of a batch by ``executemany``."""
+    mark = "?" if dialect.paramstyle == "qmark" else "%s"
+    # mesh_id is an int, inlined so that it does not take a parameter slot per row.
+    row = f"({mesh_id}, {', '.join([mark] * len(names))})"
+    head = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES "
+    limit = _variable_limit(cursor)
+    per = max(1, min(_ROWS_PER_INSERT, limit // max(len(names), 1)))
+    many = head + ", ".join([row] * per)
     for start in range(0, n_rows, _WRITE_ROWS):
-        lists = []
-        for values, null_ok in zip(arrays, nullable):
-            chunk = values[start : start + _WRITE_ROWS]
-            nulls = _is_null(chunk) if null_ok else None
-            if nulls is not None and nulls.any():
-                boxed = chunk.astype(object)
-                boxed[nulls] = None
-                lists.append(boxed.tolist())
-            else:
-                lists.append(chunk.tolist())
-        cursor.executemany(sql, zip(itertools.repeat(mesh_id), *lists))
+        stop = min(start + _WRITE_ROWS, n_rows)
+        block = np.empty((stop - start, len(names)), dtype=object)
+        for k, (values, null_ok) in enumerate(zip(arrays, nullable)):
+            chunk = values[start:stop]
+            block[:, k] = chunk.tolist()
+            if null_ok:
+                block[_is_null(chunk), k] = None
+        full = (len(block) // per) * per
+        for params in block[:full].reshape(-1, per * len(names)).tolist():
+            cursor.execute(many, params)
+        if full < len(block):
+            cursor.executemany(head + row, block[full:].tolist())
         if progress is not None:
-            progress(min(start + _WRITE_ROWS, n_rows))
+            progress(stop)
 
 
 _PG_TYPE = {sa.Integer: ">i4", sa.BigInteger: ">i8", sa.Float: ">f8"}

@@ -1,0 +1,1302 @@
+"""Benchmark: bulk import, to_arrays and export of 1 M-polygon meshes (SPEC §5, §9).
+
+    python bench/import.py [--backends sqlite,postgresql] [--only grid,bunny,igea] [--n 710]
+
+Meshes (``--only``):
+
+grid    the triangulated N×N vertex grid (``--n``, default 710: 2·709² =
+        1,005,362 triangles), positions and an (F, 3) int64 array made before
+        the timed region, stored with ``store.import_arrays``;
+bunny   ``stanford-bunny-subdiv2.obj`` (ASCII OBJ, 1.1 M triangles, boundary,
+        unreferenced vertices), stored with ``store.import_file``;
+igea    ``igea-subdiv1.ply`` (binary PLY, 1.07 M triangles, closed), stored
+        with ``store.import_file``.
+
+The two files are read in place from ``$HESTORE_BENCH_MESHES``, else
+``../shared/meshes`` next to the repository (never copied).
+
+Figures, each on a SQLite file and on PostgreSQL, each run in a fresh
+subprocess that reports its own peak RSS and CPU time:
+
+import      hestore's import into a fresh database, commit included (and, on
+            PostgreSQL, the ANALYZE hestore runs after it).
+            Floor = numpy build + insert (+ parse for a file):
+              parse   the fastest few-line numpy parse of the file (OBJ:
+                      ``np.fromstring`` / ``np.loadtxt`` of the ``v`` and ``f``
+                      blocks; PLY: ``np.frombuffer`` with the header's dtype);
+              build   a minimal numpy half-edge builder for manifold input
+                      (`numpy_build`: seed 003's twin matching by sorting, no
+                      validation), checked to give the same arrays as
+                      `hestore.build.build`;
+              insert  the same rows, with the same values, written with the
+                      plain driver into a fresh database with hestore's schema
+                      in one transaction: SQLite ``executemany`` or multi-row
+                      ``VALUES``; PostgreSQL ``COPY`` with ``write_row`` or a
+                      binary buffer assembled with numpy — each measured, the
+                      faster taken.
+            Target (SPEC §9): ≤ 2× floor and peak RSS ≤ 1.5 GB.
+to_arrays   ``mesh.to_arrays()`` of the imported mesh. Floor: the plain-driver
+            SELECT of the columns it needs (vertex positions, half-edge origin
+            and next, polygon half-edge) into numpy. No SPEC target.
+export      ``mesh.export`` to binary .ply and to .obj. Floor: the SELECT floor
+            plus writing the same arrays (.ply: a few-line numpy writer; .obj:
+            ``formats.write``, hestore's own writer, as no independent floor
+            exists). No SPEC target.
+
+After each import, ``mesh.check()`` must come back empty (a correctness gate,
+timed but not a figure); to_arrays and a re-read of each exported file must
+give back the input arrays. The output ends with a markdown table and notes on
+the machine. Exit status is non-zero only when something is wrong (a failed
+step, a violation, a mismatch), never for a slow figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import cProfile
+import io
+import itertools
+import json
+import os
+import platform
+import pstats
+import resource
+import shutil
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+import numpy as np  # noqa: E402
+import sqlalchemy as sa  # noqa: E402
+
+import hestore  # noqa: E402
+from hestore import formats, schema  # noqa: E402
+from hestore.build import Ragged, build  # noqa: E402
+from _common import DEFAULT_PG_URL, PostgresBackend, log, pg_problem, print_table  # noqa: E402
+
+TARGET_RATIO = 2.0
+TARGET_RSS = 1.5e9  # bytes ("1.5 GB")
+CHUNK_ROWS = 131072  # rows per batch in the driver floors, as hestore's writer
+VALUES_ROWS = 1000  # rows per multi-row INSERT (capped by SQLite's variable limit)
+FILES = {"bunny": "stanford-bunny-subdiv2.obj", "igea": "igea-subdiv1.ply"}
+MESHES = ("grid", "bunny", "igea")
+
+
+# ==========================================================================
+# Inputs
+
+
+def meshes_dir() -> str:
+    env = os.environ.get("HESTORE_BENCH_MESHES")
+    if env:
+        return env
+    return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
+
+
+def grid_arrays(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The triangulated n×n vertex grid: positions (n², 3) and triangles (2(n-1)², 3), counter-clockwise."""
+    j, i = np.divmod(np.arange(n * n, dtype=np.int64), n)
+    positions = np.column_stack([i, j, np.zeros(n * n)]).astype(np.float64)
+    v = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    faces = np.empty((2 * len(v), 3), dtype=np.int64)
+    faces[0::2] = np.column_stack([v, v + 1, v + n + 1])
+    faces[1::2] = np.column_stack([v, v + n + 1, v + n])
+    return positions, faces
+
+
+@dataclass
+class Input:
+    positions: np.ndarray
+    offsets: np.ndarray
+    indices: np.ndarray
+    faces: np.ndarray | None  # the (F, k) array given to import_arrays (grid only)
+    path: str | None
+
+
+def load_input(spec: dict) -> Input:
+    if spec["mesh"] == "grid":
+        pos, faces = grid_arrays(spec["n"])
+        return Input(pos, np.arange(len(faces) + 1, dtype=np.int64) * 3, faces.reshape(-1), faces, None)
+    path = os.path.join(spec["dir"], FILES[spec["mesh"]])
+    soup = formats.read(path)
+    return Input(soup.positions, soup.offsets, soup.indices, None, path)
+
+
+# ==========================================================================
+# Floors: parsing
+
+
+def _obj_blocks(path: str) -> tuple[bytes, bytes]:
+    """The ``v`` lines and the ``f`` lines of an OBJ whose vertices all come before its faces."""
+    with open(path, "rb") as f:
+        data = f.read()
+    v0 = 0 if data.startswith(b"v ") else data.find(b"\nv ") + 1
+    f0 = data.find(b"\nf ") + 1
+    return data[v0:f0], data[f0:]
+
+
+def parse_obj_fromstring(path: str):
+    """OBJ of ``v x y z`` then ``f a b c`` lines: drop the letters, ``np.fromstring`` each block."""
+    vs, fs = _obj_blocks(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        pos = np.fromstring(vs.replace(b"v", b" "), dtype=np.float64, sep=" ").reshape(-1, 3)
+        idx = np.fromstring(fs.replace(b"f", b" "), dtype=np.int64, sep=" ") - 1
+    return pos, np.arange(len(idx) // 3 + 1, dtype=np.int64) * 3, idx
+
+
+def parse_obj_loadtxt(path: str):
+    """The same blocks through ``np.loadtxt(usecols=(1, 2, 3))``."""
+    vs, fs = _obj_blocks(path)
+    pos = np.loadtxt(io.BytesIO(vs), usecols=(1, 2, 3), dtype=np.float64, ndmin=2)
+    idx = np.loadtxt(io.BytesIO(fs), usecols=(1, 2, 3), dtype=np.int64, ndmin=2).reshape(-1) - 1
+    return pos, np.arange(len(idx) // 3 + 1, dtype=np.int64) * 3, idx
+
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+
+
+def parse_ply_frombuffer(path: str):
+    """Binary PLY of a vertex element and a face element whose lists all have 3 entries: ``np.frombuffer``."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    lines = data[:end].decode("ascii").splitlines()
+    bo = "<" if "binary_little_endian" in lines[1] else ">"
+    elements = []
+    for line in lines:
+        w = line.split()
+        if w[0] == "element":
+            elements.append((w[1], int(w[2]), []))
+        elif w[0] == "property" and w[1] == "list":
+            elements[-1][2].append((w[4], bo + _PLY_TYPES[w[2]], bo + _PLY_TYPES[w[3]]))
+        elif w[0] == "property":
+            elements[-1][2].append((w[2], bo + _PLY_TYPES[w[1]]))
+    (_, nv, vprops), (_, nf, fprops) = elements
+    vdt = np.dtype([p[:2] for p in vprops])
+    (_, count_t, index_t), = fprops
+    fdt = np.dtype([("n", count_t), ("i", index_t, (3,))])
+    v = np.frombuffer(data, dtype=vdt, count=nv, offset=end)
+    f = np.frombuffer(data, dtype=fdt, count=nf, offset=end + nv * vdt.itemsize)
+    pos = np.column_stack([v["x"], v["y"], v["z"]]).astype(np.float64)
+    return pos, np.arange(nf + 1, dtype=np.int64) * 3, f["i"].reshape(-1).astype(np.int64)
+
+
+PARSE_FLOORS = {
+    "bunny": {"np.fromstring": parse_obj_fromstring, "np.loadtxt": parse_obj_loadtxt},
+    "igea": {"np.frombuffer": parse_ply_frombuffer},
+}
+
+
+# ==========================================================================
+# Floors: the numpy half-edge build
+
+
+def numpy_build(n_vertices: int, offsets: np.ndarray, indices: np.ndarray, sort: str = "stable"):
+    """Half-edge arrays of a manifold, consistently oriented polygon soup (no validation).
+
+    Seed 003's construction with numpy: one half-edge per corner; twins by
+    sorting the corners by their undirected vertex pair (``sort``: a stable
+    argsort, or quicksort and then putting the earlier corner of each pair
+    first); edges numbered in order of first use, edge ``e`` owning ``2e``
+    (first use) and ``2e + 1``; next/prev within each polygon; a pair used
+    once gets a free twin, whose next is the one free half-edge leaving its
+    target (a manifold boundary vertex has exactly one); ``vertex.halfedge``
+    prefers a free half-edge. These are hestore's conventions, so the
+    arrays are comparable one for one with `hestore.build.build`'s.
+
+    Returns ``(origin, next, prev, polygon, vertex_halfedge, polygon_halfedge)``
+    with -1 for NULL; twin and edge are implicit (``h ^ 1``, ``h >> 1``).
+    """
+    counts = np.diff(offsets)
+    c = len(indices)
+    succ = np.arange(1, c + 1, dtype=np.int64)
+    succ[offsets[1:] - 1] = offsets[:-1]  # a polygon's last corner wraps to its first
+    a, b = indices, indices[succ]
+    key = np.minimum(a, b) * n_vertices + np.maximum(a, b)
+    order = np.argsort(key, kind=sort)
+    sorted_key = key[order]
+    start = np.ones(c, dtype=bool)
+    start[1:] = sorted_key[1:] != sorted_key[:-1]
+    if sort != "stable":
+        pair = np.flatnonzero(~start[1:])  # sorted positions i whose i + 1 is the same pair
+        swap = pair[order[pair] > order[pair + 1]]
+        order[swap], order[swap + 1] = order[swap + 1], order[swap]
+    first = np.zeros(c, dtype=bool)
+    first[order[start]] = True
+    edge_of_first = np.cumsum(first) - 1  # edges in order of first use
+    group = np.cumsum(start) - 1
+    he = np.empty(c, dtype=np.int64)
+    he[order] = 2 * edge_of_first[order[start]][group] + ~start
+    n_he = 2 * len(np.flatnonzero(start))
+    origin = np.empty(n_he, dtype=np.int64)
+    origin[he] = a
+    polygon = np.full(n_he, -1, dtype=np.int64)
+    polygon[he] = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+    nxt = np.empty(n_he, dtype=np.int64)
+    prv = np.empty(n_he, dtype=np.int64)
+    nxt[he] = he[succ]
+    prv[he[succ]] = he
+    lone = start.copy()
+    lone[:-1] &= start[1:]
+    lone_corner = order[lone]
+    free = he[lone_corner] + 1
+    origin[free] = b[lone_corner]
+    free_out = np.full(n_vertices, -1, dtype=np.int64)
+    free_out[origin[free]] = free
+    after = free_out[origin[free ^ 1]]  # the free half-edge leaving the target
+    nxt[free] = after
+    prv[after] = free
+    vertex_he = np.full(n_vertices, -1, dtype=np.int64)
+    vertex_he[origin] = np.arange(n_he, dtype=np.int64)
+    vertex_he[origin[free]] = free
+    return origin, nxt, prv, polygon, vertex_he, he[offsets[:-1]]
+
+
+# ==========================================================================
+# Floors: writing rows with the plain driver
+
+
+def table_rows(positions: np.ndarray, built) -> list[tuple[sa.Table, dict]]:
+    """Every table's columns, with the values hestore writes (-1 / NaN = NULL)."""
+    a = built.arrays
+    n_v, n_h, n_e, n_p = len(positions), a.halfedges, a.edges, len(built.accepted)
+    ids = np.arange(n_h, dtype=np.int64)
+    return [
+        (schema.vertices, {"id": np.arange(n_v), "halfedge": a.vertex_halfedge,
+                           "x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}),
+        (schema.halfedges, {"id": ids, "origin": a.origin, "next": a.next, "prev": a.prev,
+                            "twin": ids ^ 1, "edge": ids >> 1, "polygon": a.polygon}),
+        (schema.edges, {"id": np.arange(n_e), "halfedge": 2 * np.arange(n_e)}),
+        (schema.polygons, {"id": np.arange(n_p), "halfedge": a.polygon_halfedge}),
+    ]
+
+
+def _nulls(values: np.ndarray) -> np.ndarray:
+    return np.isnan(values) if values.dtype.kind == "f" else values < 0
+
+
+def _py_list(values: np.ndarray, nullable: bool) -> list:
+    if nullable:
+        nulls = _nulls(values)
+        if nulls.any():
+            boxed = values.astype(object)
+            boxed[nulls] = None
+            return boxed.tolist()
+    return values.tolist()
+
+
+def sqlite_executemany(con: sqlite3.Connection, mesh_id: int, tables) -> dict:
+    cur = con.cursor()
+    cur.execute("BEGIN")
+    for table, cols in tables:
+        names = list(cols)
+        sql = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES ({mesh_id}, {', '.join('?' * len(names))})"
+        n = len(cols["id"])
+        for s in range(0, n, CHUNK_ROWS):
+            lists = [_py_list(cols[k][s : s + CHUNK_ROWS], table.c[k].nullable) for k in names]
+            cur.executemany(sql, zip(*lists))
+    cur.execute("COMMIT")
+    return {}
+
+
+def sqlite_values(con: sqlite3.Connection, mesh_id: int, tables) -> dict:
+    limit = con.getlimit(sqlite3.SQLITE_LIMIT_VARIABLE_NUMBER)
+    cur = con.cursor()
+    cur.execute("BEGIN")
+    per_stmt = {}
+    for table, cols in tables:
+        names = list(cols)
+        k = len(names)
+        per = max(1, min(VALUES_ROWS, limit // k))
+        per_stmt[table.name] = per
+        row = f"({mesh_id}, {', '.join('?' * k)})"
+        head = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES "
+        full = head + ", ".join([row] * per)
+        n = len(cols["id"])
+        step = per * max(1, CHUNK_ROWS // per)
+        for s in range(0, n, step):
+            m = min(n, s + step) - s
+            block = np.empty((m, k), dtype=object)
+            for j, name in enumerate(names):
+                values = cols[name][s : s + m]
+                block[:, j] = values
+                if table.c[name].nullable:
+                    nulls = _nulls(values)
+                    if nulls.any():
+                        block[nulls, j] = None
+            flat = block.ravel().tolist()
+            del block
+            q = 0
+            while q + per <= m:
+                cur.execute(full, flat[q * k : (q + per) * k])
+                q += per
+            if q < m:
+                cur.execute(head + ", ".join([row] * (m - q)), flat[q * k :])
+    cur.execute("COMMIT")
+    return {"rows per statement": per_stmt, "variable limit": limit}
+
+
+def pg_write_row(conn, mesh_id: int, tables) -> dict:
+    with conn.cursor() as cur:
+        for table, cols in tables:
+            names = list(cols)
+            n = len(cols["id"])
+            with cur.copy(f"COPY {table.name} (mesh_id, {', '.join(names)}) FROM STDIN") as copy:
+                for s in range(0, n, CHUNK_ROWS):
+                    lists = [_py_list(cols[k][s : s + CHUNK_ROWS], table.c[k].nullable) for k in names]
+                    for row in zip(itertools.repeat(mesh_id), *lists):
+                        copy.write_row(row)
+    conn.commit()
+    return {}
+
+
+_PGCOPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + b"\x00" * 8
+
+
+def _pg_type(column: sa.Column) -> str:
+    if isinstance(column.type, sa.Float):
+        return ">f8"
+    return ">i8" if isinstance(column.type, sa.BigInteger) else ">i4"
+
+
+def pg_binary(conn, mesh_id: int, tables) -> dict:
+    """Binary COPY: each block of rows one numpy structured array per pattern of NULL columns."""
+    with conn.cursor() as cur:
+        for table, cols in tables:
+            names = list(cols)
+            columns = [table.c.mesh_id] + [table.c[k] for k in names]
+            types = [_pg_type(c) for c in columns]
+            n = len(cols["id"])
+            with cur.copy(f"COPY {table.name} (mesh_id, {', '.join(names)}) FROM STDIN (FORMAT BINARY)") as copy:
+                copy.write(_PGCOPY_HEADER)
+                for s in range(0, n, CHUNK_ROWS):
+                    m = min(n, s + CHUNK_ROWS) - s
+                    values = [np.full(m, mesh_id)] + [cols[k][s : s + m] for k in names]
+                    pattern = np.zeros(m, dtype=np.int64)
+                    for j, c in enumerate(columns):
+                        if c.nullable:
+                            pattern |= _nulls(values[j]).astype(np.int64) << j
+                    patterns = np.unique(pattern).tolist()
+                    for p in patterns:
+                        rows = slice(None) if len(patterns) == 1 else np.flatnonzero(pattern == p)
+                        fields = [("count", ">i2")]
+                        for j, t in enumerate(types):
+                            fields.append((f"l{j}", ">i4"))
+                            if not (p >> j) & 1:
+                                fields.append((f"v{j}", t))
+                        block = np.empty(m if len(patterns) == 1 else len(rows), dtype=fields)
+                        block["count"] = len(columns)
+                        for j, t in enumerate(types):
+                            if (p >> j) & 1:
+                                block[f"l{j}"] = -1
+                            else:
+                                block[f"l{j}"] = np.dtype(t).itemsize
+                                block[f"v{j}"] = values[j][rows]
+                        copy.write(block.tobytes())
+                copy.write(b"\xff\xff")
+    conn.commit()
+    return {}
+
+
+INSERT_FLOORS = {
+    "sqlite": {"executemany": sqlite_executemany, "multi-row VALUES": sqlite_values},
+    "postgresql": {"COPY write_row": pg_write_row, "COPY binary (numpy)": pg_binary},
+}
+
+
+# ==========================================================================
+# Floors: reading columns and writing files
+
+_SELECTS = [
+    ("vertices", "id, x, y, z", np.float64),
+    ("halfedges", "id, origin, next", np.int64),
+    ("polygons", "id, halfedge", np.int64),
+]
+
+
+def _by_id(rows: np.ndarray) -> np.ndarray:
+    """Rows sorted by their first column (id), as hestore returns them; most often they already are."""
+    ids = rows[:, 0]
+    if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
+        rows = rows[np.argsort(ids, kind="stable")]
+    return rows
+
+
+def select_fetchall(cursor, mesh_id: int, placeholder: str) -> list[np.ndarray]:
+    out = []
+    for table, cols, dtype in _SELECTS:
+        cursor.execute(f"SELECT {cols} FROM {table} WHERE mesh_id = {placeholder}", (mesh_id,))
+        out.append(_by_id(np.array(cursor.fetchall(), dtype=dtype)))
+    return out
+
+
+def select_fromiter(cursor, mesh_id: int, placeholder: str) -> list[np.ndarray]:
+    out = []
+    for table, cols, dtype in _SELECTS:
+        k = len(cols.split(","))
+        cursor.execute(f"SELECT {cols} FROM {table} WHERE mesh_id = {placeholder}", (mesh_id,))
+        out.append(_by_id(np.fromiter(cursor, dtype=np.dtype((dtype, (k,))))))
+    return out
+
+
+def select_pg_array_agg(cursor, mesh_id: int, placeholder: str) -> list[np.ndarray]:
+    """Per table one ``COPY (SELECT array_agg(col), ...) TO STDOUT (FORMAT BINARY)``: a single row whose
+    array fields are decoded with ``np.frombuffer``. (A row-per-row ``COPY TO`` is far slower: the
+    driver hands over every row as its own message.)"""
+    out = []
+    for table, cols, dtype in _SELECTS:
+        names = [c.strip() for c in cols.split(",")]
+        pg_type, value = ("float8", ">f8") if dtype is np.float64 else ("int8", ">i8")
+        aggs = ", ".join(f"array_agg({c}::{pg_type})" for c in names)
+        with cursor.copy(f"COPY (SELECT {aggs} FROM {table} WHERE mesh_id = {int(mesh_id)}) TO STDOUT (FORMAT BINARY)") as copy:
+            buf = b"".join(copy)
+        pos = 19 + 2  # signature, flags, header extension; then the row's field count
+        item = np.dtype([("length", ">i4"), ("value", value)])
+        columns = []
+        for _ in names:
+            length = int.from_bytes(buf[pos : pos + 4], "big", signed=True)
+            if length < 0:  # array_agg of no rows is NULL
+                columns.append(np.empty(0, dtype=dtype))
+                pos += 4
+                continue
+            count = int.from_bytes(buf[pos + 16 : pos + 20], "big")  # after ndim, flags, element type
+            columns.append(np.frombuffer(buf, dtype=item, count=count, offset=pos + 24)["value"].astype(dtype))
+            pos += 4 + length
+        del buf
+        out.append(_by_id(np.column_stack(columns)))
+    return out
+
+
+SELECT_FLOORS = {
+    "sqlite": {"fetchall + np.array": select_fetchall, "np.fromiter(cursor)": select_fromiter},
+    "postgresql": {"fetchall + np.array": select_fetchall, "COPY TO of array_agg + np.frombuffer": select_pg_array_agg},
+}
+
+
+def write_ply_numpy(path: str, positions: np.ndarray, offsets: np.ndarray, indices: np.ndarray) -> None:
+    """Binary little-endian PLY of triangles: a header, then two arrays' bytes."""
+    f = len(offsets) - 1
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(positions)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {f}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    records = np.empty(f, dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    records["n"] = 3
+    records["i"] = indices.reshape(-1, 3)
+    with open(path, "wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(positions.astype("<f8").tobytes())
+        out.write(records.tobytes())
+
+
+# ==========================================================================
+# Databases
+
+
+def sqlite_url(path: str) -> str:
+    return f"sqlite:///{path}"
+
+
+def remove_sqlite(path: str) -> None:
+    for suffix in ("", "-wal", "-shm", "-journal"):
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(path + suffix)
+
+
+def sqlite_connect(path: str) -> sqlite3.Connection:
+    """A plain connection configured as hestore configures its own."""
+    con = sqlite3.connect(path, isolation_level=None)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA synchronous=NORMAL")
+    con.execute("PRAGMA cache_size=-65536")
+    return con
+
+
+def pg_schema_url(db_url: str, schema_name: str) -> str:
+    from urllib.parse import quote
+
+    return f"{db_url}?options={quote(f'-csearch_path={schema_name}')}"
+
+
+def pg_connect(url: str, *, autocommit: bool = False):
+    import psycopg
+
+    u = sa.engine.make_url(url)
+    kw = {"host": u.host, "port": u.port, "user": u.username, "dbname": u.database}
+    if u.password:
+        kw["password"] = u.password
+    if "options" in u.query:
+        kw["options"] = u.query["options"]
+    return psycopg.connect(autocommit=autocommit, **{k: v for k, v in kw.items() if v is not None})
+
+
+def pg_fresh_schema(db_url: str, name: str) -> str:
+    with pg_connect(db_url, autocommit=True) as conn:
+        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
+        conn.execute(f'CREATE SCHEMA "{name}"')
+    return pg_schema_url(db_url, name)
+
+
+def pg_drop_schema(db_url: str, name: str) -> None:
+    with pg_connect(db_url, autocommit=True) as conn:
+        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
+
+
+def settle(spec: dict) -> None:
+    """Before a timed region: flush dirty pages, and on PostgreSQL run a CHECKPOINT,
+    so that work left by the previous step does not land in this one."""
+    os.sync()
+    if spec.get("backend") == "postgresql":
+        with pg_connect(spec["db_url"], autocommit=True) as conn:
+            conn.execute("CHECKPOINT")
+
+
+# ==========================================================================
+# Child jobs (each runs in its own process)
+
+
+def maxrss() -> int:
+    """Peak RSS of this process so far, in bytes."""
+    kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return kb * 1024 if sys.platform != "darwin" else kb
+
+
+def cpu_seconds() -> float:
+    """User + system CPU time of this process so far."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def best_of(fn, *args, repeat: int = 2):
+    times, out = [], None
+    for _ in range(repeat):
+        out = None
+        t0 = time.perf_counter()
+        out = fn(*args)
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def job_parse_floor(spec: dict) -> dict:
+    path = os.path.join(spec["dir"], FILES[spec["mesh"]])
+    variants = {}
+    outputs = {}
+    for name, fn in PARSE_FLOORS[spec["mesh"]].items():
+        variants[name], outputs[name] = best_of(fn, path)
+    t0 = time.perf_counter()
+    soup = formats.read(path)
+    read_s = time.perf_counter() - t0
+    same = {name: bool(np.array_equal(p, soup.positions) and np.array_equal(o, soup.offsets) and np.array_equal(i, soup.indices))
+            for name, (p, o, i) in outputs.items()}
+    usable = {k: v for k, v in variants.items() if same[k]}
+    best = min(usable, key=usable.get) if usable else None
+    return {"variants": variants, "same": same, "best": best, "seconds": usable[best] if best else None,
+            "formats_read": read_s, "vertices": len(soup.positions), "polygons": len(soup.offsets) - 1}
+
+
+def job_build_floor(spec: dict) -> dict:
+    inp = load_input(spec)
+    nv = len(inp.positions)
+    variants, outputs = {}, {}
+    for sort in ("stable", "quicksort"):
+
+        def run(sort=sort):
+            if inp.faces is not None:  # the (F, k) array, as import_arrays gets it
+                f, k = inp.faces.shape
+                return numpy_build(nv, np.arange(f + 1, dtype=np.int64) * k, inp.faces.reshape(-1), sort)
+            return numpy_build(nv, inp.offsets, inp.indices, sort)
+
+        variants[f"argsort {sort}"], outputs[sort] = best_of(run)
+    t0 = time.perf_counter()
+    built = build(nv, Ragged(inp.offsets, inp.indices))
+    hestore_build = time.perf_counter() - t0
+    a = built.arrays
+    ref = (a.origin, a.next, a.prev, a.polygon, a.vertex_halfedge, a.polygon_halfedge)
+    names = ("origin", "next", "prev", "polygon", "vertex.halfedge", "polygon.halfedge")
+    diffs = sorted({nm for out in outputs.values() for nm, x, y in zip(names, out, ref) if not np.array_equal(x, y)})
+    counts_equal = all(len(out[0]) == a.halfedges for out in outputs.values())
+    best = min(variants, key=variants.get)
+    return {"variants": variants, "best": best, "seconds": variants[best], "hestore_build": hestore_build,
+            "halfedges": a.halfedges, "edges": a.edges, "polygons": len(built.accepted), "refused": len(built.refused),
+            "counts_equal": counts_equal, "arrays_differ": diffs, "vertices": nv}
+
+
+def _fresh_sqlite_mesh(path: str) -> int:
+    """A new database with hestore's schema and one empty mesh; returns the mesh's id."""
+    remove_sqlite(path)
+    with contextlib.closing(hestore.open(sqlite_url(path))) as store:
+        store.create_mesh("floor")
+    with contextlib.closing(sqlite3.connect(path)) as con:
+        return con.execute("SELECT id FROM meshes WHERE name = 'floor'").fetchone()[0]
+
+
+def _fresh_pg_mesh(db_url: str, schema_name: str) -> int:
+    url = pg_fresh_schema(db_url, schema_name)
+    with contextlib.closing(hestore.open(url)) as store:
+        store.create_mesh("floor")
+    with pg_connect(url, autocommit=True) as conn:
+        return conn.execute("SELECT id FROM meshes WHERE name = 'floor'").fetchone()[0]
+
+
+def job_insert_floor(spec: dict) -> dict:
+    inp = load_input(spec)
+    built = build(len(inp.positions), Ragged(inp.offsets, inp.indices))
+    tables = table_rows(inp.positions, built)
+    rows = sum(len(cols["id"]) for _, cols in tables)
+    variants, details, cpu = {}, {}, {}
+    analyze = None
+    for name, fn in INSERT_FLOORS[spec["backend"]].items():
+        if spec["backend"] == "sqlite":
+            path = os.path.join(spec["workdir"], f"floor-{spec['mesh']}.db")
+            mesh_id = _fresh_sqlite_mesh(path)
+            con = sqlite_connect(path)
+            settle(spec)
+            c0 = cpu_seconds()
+            t0 = time.perf_counter()
+            details[name] = fn(con, mesh_id, tables)
+            variants[name] = time.perf_counter() - t0
+            cpu[name] = cpu_seconds() - c0
+            con.close()
+            remove_sqlite(path)
+        else:
+            schema_name = f"floor_{spec['mesh']}"
+            mesh_id = _fresh_pg_mesh(spec["db_url"], schema_name)
+            conn = pg_connect(pg_schema_url(spec["db_url"], schema_name))
+            settle(spec)
+            c0 = cpu_seconds()
+            t0 = time.perf_counter()
+            details[name] = fn(conn, mesh_id, tables)
+            variants[name] = time.perf_counter() - t0
+            cpu[name] = cpu_seconds() - c0
+            if analyze is None:
+                conn.autocommit = True
+                t0 = time.perf_counter()
+                for table, _ in tables:
+                    conn.execute(f"ANALYZE {table.name}")
+                analyze = time.perf_counter() - t0
+            conn.close()
+            pg_drop_schema(spec["db_url"], schema_name)
+        log(f"  {spec['backend']} {spec['mesh']} insert floor, {name}: {variants[name]:.2f} s")
+    best = min(variants, key=variants.get)
+    return {"variants": variants, "cpu": cpu, "details": details, "best": best, "seconds": variants[best], "rows": rows,
+            "analyze": analyze}
+
+
+def _store_url(spec: dict) -> str:
+    return sqlite_url(spec["path"]) if spec["backend"] == "sqlite" else spec["url"]
+
+
+def _import(store, spec: dict, inp: Input | None):
+    if spec["mesh"] == "grid":
+        return store.import_arrays("grid", inp.positions, inp.faces)
+    return store.import_file(os.path.join(spec["dir"], FILES[spec["mesh"]]), spec["mesh"])
+
+
+def job_import(spec: dict) -> dict:
+    inp = load_input(spec) if spec["mesh"] == "grid" else None  # the arrays a user already has
+    store = hestore.open(_store_url(spec))
+    settle(spec)
+    rss0 = maxrss()
+    profiler = cProfile.Profile() if spec.get("profile") else None
+    c0 = cpu_seconds()
+    t0 = time.perf_counter()
+    if profiler:
+        profiler.enable()
+    report = _import(store, spec, inp)
+    if profiler:
+        profiler.disable()
+    seconds = time.perf_counter() - t0
+    cpu = cpu_seconds() - c0
+    rss = maxrss()
+    store.close()
+    out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "vertices": report.vertices, "edges": report.edges,
+           "polygons": report.polygons, "skipped": len(report.skipped)}
+    if profiler:
+        text = io.StringIO()
+        stats = pstats.Stats(profiler, stream=text).strip_dirs()
+        stats.sort_stats("tottime").print_stats(spec.get("profile_lines", 20))
+        stats.sort_stats("cumulative").print_stats(spec.get("profile_lines", 20))
+        out["profile"] = text.getvalue()
+    return out
+
+
+def job_check(spec: dict) -> dict:
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        t0 = time.perf_counter()
+        violations = mesh.check()
+        seconds = time.perf_counter() - t0
+        counts = mesh.counts()
+    return {"seconds": seconds, "violations": len(violations), "examples": [str(v) for v in violations[:5]],
+            "counts": [counts.vertices, counts.halfedges, counts.edges, counts.polygons]}
+
+
+def _same_as_input(inp: Input, positions, offsets, indices) -> list[str]:
+    bad = []
+    if not np.array_equal(positions, inp.positions):
+        bad.append("positions")
+    if not (np.array_equal(offsets, inp.offsets) and np.array_equal(indices, inp.indices)):
+        bad.append("polygons")
+    return bad
+
+
+def job_to_arrays(spec: dict) -> dict:
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        settle(spec)
+        c0 = cpu_seconds()
+        t0 = time.perf_counter()
+        arrays = mesh.to_arrays()
+        seconds = time.perf_counter() - t0
+        cpu = cpu_seconds() - c0
+        rss = maxrss()
+    inp = load_input(spec)
+    polys = arrays.polygons
+    if isinstance(polys, np.ndarray):
+        offsets = np.arange(len(polys) + 1, dtype=np.int64) * polys.shape[1]
+        indices = polys.reshape(-1)
+    else:
+        offsets = np.concatenate([[0], np.cumsum([len(p) for p in polys])])
+        indices = np.concatenate([np.asarray(p) for p in polys])
+    bad = _same_as_input(inp, arrays.positions, offsets, indices)
+    if not np.array_equal(arrays.vertex_ids, np.arange(len(inp.positions))):
+        bad.append("vertex_ids")
+    return {"seconds": seconds, "cpu": cpu, "rss": rss, "mismatch": bad}
+
+
+def job_select_floor(spec: dict) -> dict:
+    variants = {}
+    shapes = None
+    for name, fn in SELECT_FLOORS[spec["backend"]].items():
+        if spec["backend"] == "sqlite":
+            con = sqlite_connect(spec["path"])
+            mesh_id = con.execute("SELECT id FROM meshes WHERE name = ?", (spec["mesh"],)).fetchone()[0]
+            cur = con.cursor()
+            settle(spec)
+            t0 = time.perf_counter()
+            cur.execute("BEGIN")  # one snapshot, as hestore reads
+            out = fn(cur, mesh_id, "?")
+            cur.execute("ROLLBACK")
+            variants[name] = time.perf_counter() - t0
+            con.close()
+        else:
+            conn = pg_connect(spec["url"], autocommit=True)
+            with conn.cursor() as cur:
+                cur.execute("SELECT id FROM meshes WHERE name = %s", (spec["mesh"],))
+                mesh_id = cur.fetchone()[0]
+                settle(spec)
+                t0 = time.perf_counter()
+                cur.execute("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY")  # one snapshot, as hestore reads
+                out = fn(cur, mesh_id, "%s")
+                cur.execute("ROLLBACK")
+                variants[name] = time.perf_counter() - t0
+            conn.close()
+        shapes = [list(x.shape) for x in out]
+        assert all(len(x) < 2 or (x[1:, 0] > x[:-1, 0]).all() for x in out), "rows did not come back in id order"
+        del out
+    best = min(variants, key=variants.get)
+    return {"variants": variants, "best": best, "seconds": variants[best], "shapes": shapes}
+
+
+def job_export(spec: dict) -> dict:
+    out_path = os.path.join(spec["workdir"], f"export-{spec['mesh']}.{spec['fmt']}")
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        settle(spec)
+        c0 = cpu_seconds()
+        t0 = time.perf_counter()
+        mesh.export(out_path)
+        seconds = time.perf_counter() - t0
+        cpu = cpu_seconds() - c0
+        rss = maxrss()
+    size = os.path.getsize(out_path)
+    soup = formats.read(out_path)
+    os.remove(out_path)
+    bad = _same_as_input(load_input(spec), soup.positions, soup.offsets, soup.indices)
+    return {"seconds": seconds, "cpu": cpu, "rss": rss, "bytes": size, "mismatch": bad}
+
+
+def job_write_floor(spec: dict) -> dict:
+    inp = load_input(spec)
+    path = os.path.join(spec["workdir"], f"floor-{spec['mesh']}.{spec['fmt']}")
+    out = {}
+    if spec["fmt"] == "ply":
+        out["numpy writer"], _ = best_of(write_ply_numpy, path, inp.positions, inp.offsets, inp.indices)
+        soup = formats.read(path)
+        out_same = not _same_as_input(inp, soup.positions, soup.offsets, soup.indices)
+        t0 = time.perf_counter()
+        formats.write(path, inp.positions, inp.offsets, inp.indices)
+        info = {"formats.write": time.perf_counter() - t0}
+        best = "numpy writer"
+    else:
+        t0 = time.perf_counter()
+        formats.write(path, inp.positions, inp.offsets, inp.indices)
+        out["formats.write"] = time.perf_counter() - t0
+        out_same = True
+        info = {}
+        best = "formats.write"
+    os.remove(path)
+    return {"variants": out, "best": best, "seconds": out[best], "info": info, "same": out_same}
+
+
+JOBS = {
+    "parse_floor": job_parse_floor,
+    "build_floor": job_build_floor,
+    "insert_floor": job_insert_floor,
+    "import": job_import,
+    "check": job_check,
+    "to_arrays": job_to_arrays,
+    "select_floor": job_select_floor,
+    "export": job_export,
+    "write_floor": job_write_floor,
+}
+
+
+def child_main(spec_json: str) -> int:
+    spec = json.loads(spec_json)
+    result = JOBS[spec["job"]](spec)
+    with open(spec["result"], "w") as f:
+        json.dump(result, f)
+    return 0
+
+
+# ==========================================================================
+# The parent: running the jobs
+
+
+class Runner:
+    def __init__(self, workdir: str, timeout: float) -> None:
+        self.workdir = workdir
+        self.timeout = timeout
+        self.errors: list[str] = []
+        self._k = 0
+
+    def run(self, **spec) -> dict | None:
+        self._k += 1
+        spec["result"] = os.path.join(self.workdir, f"result-{self._k}.json")
+        spec["workdir"] = self.workdir
+        what = " ".join(str(spec[k]) for k in ("job", "backend", "mesh", "fmt") if spec.get(k))
+        t0 = time.perf_counter()
+        try:
+            proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", json.dumps(spec)],
+                                  timeout=self.timeout, stdout=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            self.errors.append(f"{what}: timed out after {self.timeout:.0f} s")
+            log(self.errors[-1])
+            return None
+        if proc.returncode != 0 or not os.path.exists(spec["result"]):
+            self.errors.append(f"{what}: the child process failed (exit {proc.returncode}; its traceback is above)")
+            log(self.errors[-1])
+            return None
+        with open(spec["result"]) as f:
+            result = json.load(f)
+        os.remove(spec["result"])
+        log(f"{what}: done in {time.perf_counter() - t0:.1f} s")
+        return result
+
+
+class PgRun(PostgresBackend):
+    """The run's PostgreSQL database (made at the start, dropped by ``cleanup``)."""
+
+    @property
+    def url(self) -> str:
+        return self.db_url.render_as_string(hide_password=False)
+
+    def version(self) -> str:
+        with self._eng.connect() as conn:
+            return conn.execute(sa.text("SHOW server_version")).scalar()
+
+
+@dataclass
+class Figure:
+    backend: str
+    mesh: str
+    name: str
+    seconds: float | None
+    floor: float | None
+    floor_parts: str
+    target: str
+    rss: int | None
+    verdict: str
+    cpu: float | None = None
+
+    @property
+    def ratio(self) -> float | None:
+        if self.seconds is None or not self.floor:
+            return None
+        return self.seconds / self.floor
+
+
+def fmt_s(x: float | None) -> str:
+    return "—" if x is None else f"{x:.2f} s"
+
+
+def fmt_mib(b: int | None) -> str:
+    return "—" if b is None else f"{b / 2**20:,.0f} MiB"
+
+
+def mesh_label(mesh: str, n: int) -> str:
+    if mesh == "grid":
+        return f"grid {n}×{n}"
+    return FILES[mesh]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql (default both)")
+    ap.add_argument("--only", default=",".join(MESHES), help="meshes to run: grid, bunny, igea (default all)")
+    ap.add_argument("--n", type=int, default=710, help="grid vertices per side (default 710: 1,005,362 triangles)")
+    ap.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
+                    help="PostgreSQL server to use; a database is created there for the run and dropped at the end")
+    ap.add_argument("--workdir", help="where SQLite files and exports go (default: a temporary folder, removed at the end)")
+    ap.add_argument("--meshes-dir", default=meshes_dir(),
+                    help="folder of the shared mesh files (default $HESTORE_BENCH_MESHES, else ../shared/meshes)")
+    ap.add_argument("--profile", choices=("over", "all", "off"), default="over",
+                    help="profile hestore's import in a separate run when it is over target (default), always, or never")
+    ap.add_argument("--timeout", type=float, default=1800, help="seconds allowed per step (default 1800)")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        return child_main(args.child)
+
+    only = [m.strip() for m in args.only.split(",") if m.strip()]
+    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
+    for m in only:
+        if m not in MESHES:
+            ap.error(f"unknown mesh {m!r} (choose from {', '.join(MESHES)})")
+    for b in backends:
+        if b not in INSERT_FLOORS:
+            ap.error(f"unknown backend {b!r}")
+    if args.n < 2:
+        ap.error("--n must be at least 2")
+
+    skipped: list[str] = []
+    for m in list(only):
+        if m in FILES and not os.path.exists(os.path.join(args.meshes_dir, FILES[m])):
+            skipped.append(f"{m}: {os.path.join(args.meshes_dir, FILES[m])} not found")
+            only.remove(m)
+
+    own_workdir = args.workdir is None
+    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_import_")
+    os.makedirs(workdir, exist_ok=True)
+    runner = Runner(workdir, args.timeout)
+    base = {"n": args.n, "dir": args.meshes_dir}
+    load_start = os.getloadavg()
+    t_start = time.perf_counter()
+
+    floors: dict = {}  # (kind, mesh[, backend|fmt]) -> result
+    results: dict = {}  # (job, backend, mesh[, fmt]) -> result
+    pg_version = None
+    profiles: list[tuple[str, str]] = []
+    try:
+        # Backend-independent floors.
+        for m in only:
+            if m in FILES:
+                floors[("parse", m)] = runner.run(job="parse_floor", mesh=m, **base)
+            floors[("build", m)] = runner.run(job="build_floor", mesh=m, **base)
+            for fmt in ("ply", "obj"):
+                floors[("write", m, fmt)] = runner.run(job="write_floor", mesh=m, fmt=fmt, **base)
+
+        for bname in backends:
+            pg = None
+            if bname == "postgresql":
+                problem = pg_problem(args.pg_url)
+                if problem:
+                    skipped.append(f"postgresql: not reachable at {args.pg_url}: {problem}")
+                    continue
+                pg = PgRun(args.pg_url)
+                pg_version = pg.version()
+            try:
+                for m in only:
+                    spec = dict(base, backend=bname, mesh=m)
+                    if pg:
+                        spec["db_url"] = pg.url
+                    floors[("insert", m, bname)] = runner.run(job="insert_floor", **spec)
+                    if pg:
+                        spec["url"] = pg_fresh_schema(pg.url, f"imp_{m}")
+                    else:
+                        spec["path"] = os.path.join(workdir, f"import-{m}.db")
+                        remove_sqlite(spec["path"])
+                    results[("import", bname, m)] = imp = runner.run(job="import", **spec)
+                    if imp is None:
+                        continue
+                    results[("check", bname, m)] = runner.run(job="check", **spec)
+                    results[("to_arrays", bname, m)] = runner.run(job="to_arrays", **spec)
+                    floors[("select", m, bname)] = runner.run(job="select_floor", **spec)
+                    for fmt in ("ply", "obj"):
+                        results[("export", bname, m, fmt)] = runner.run(job="export", fmt=fmt, **spec)
+                    if pg:
+                        pg_drop_schema(pg.url, f"imp_{m}")
+                    else:
+                        remove_sqlite(spec["path"])
+                    # A profile of the import when it is over its target.
+                    floor = _import_floor(floors, m, bname)
+                    over = floor is not None and imp["seconds"] > TARGET_RATIO * floor[0]
+                    if args.profile == "all" or (args.profile == "over" and over):
+                        if pg:
+                            spec["url"] = pg_fresh_schema(pg.url, f"prof_{m}")
+                        else:
+                            spec["path"] = os.path.join(workdir, f"profile-{m}.db")
+                            remove_sqlite(spec["path"])
+                        prof = runner.run(job="import", profile=True, **spec)
+                        if prof:
+                            profiles.append((f"{bname} {mesh_label(m, args.n)}: import under cProfile "
+                                             f"({prof['seconds']:.2f} s with the profiler on)", prof["profile"]))
+                        if pg:
+                            pg_drop_schema(pg.url, f"prof_{m}")
+                        else:
+                            remove_sqlite(spec["path"])
+            finally:
+                if pg:
+                    pg.cleanup()
+    finally:
+        if own_workdir:
+            shutil.rmtree(workdir, ignore_errors=True)
+        else:
+            for name in os.listdir(workdir):
+                if name.startswith(("import-", "floor-", "profile-", "export-", "result-")):
+                    with contextlib.suppress(OSError):
+                        os.remove(os.path.join(workdir, name))
+
+    problems = report(args, only, backends, floors, results, profiles, skipped, runner.errors,
+                      pg_version, load_start, time.perf_counter() - t_start)
+    return 1 if problems else 0
+
+
+def _import_floor(floors: dict, mesh: str, backend: str) -> tuple[float, str] | None:
+    """The import floor and its parts, or None when one is missing."""
+    build_f = floors.get(("build", mesh))
+    insert_f = floors.get(("insert", mesh, backend))
+    parse_f = floors.get(("parse", mesh)) if mesh in FILES else {"seconds": 0.0}
+    if not build_f or not insert_f or not parse_f or parse_f.get("seconds") is None:
+        return None
+    parts = []
+    if mesh in FILES:
+        parts.append(f"parse {parse_f['seconds']:.2f} ({parse_f['best']})")
+    parts.append(f"build {build_f['seconds']:.2f}")
+    parts.append(f"insert {insert_f['seconds']:.2f} ({insert_f['best']})")
+    total = parse_f["seconds"] + build_f["seconds"] + insert_f["seconds"]
+    return total, " + ".join(parts)
+
+
+def report(args, only, backends, floors, results, profiles, skipped, errors, pg_version, load_start, elapsed) -> list[str]:
+    problems = list(errors)
+    figures: list[Figure] = []
+    notes: list[str] = []
+    for bname in backends:
+        for m in only:
+            imp = results.get(("import", bname, m))
+            if imp is None:
+                continue
+            label = mesh_label(m, args.n)
+            what = "import_arrays" if m == "grid" else "import_file"
+            fl = _import_floor(floors, m, bname)
+            seconds = imp["seconds"]
+            verdict = "—"
+            if fl:
+                over = []
+                if seconds > TARGET_RATIO * fl[0]:
+                    over.append("time")
+                if imp["rss"] > TARGET_RSS:
+                    over.append("RSS")
+                verdict = "ok" if not over else f"over ({', '.join(over)})"
+            figures.append(Figure(bname, m, f"{what} {label}", seconds, fl[0] if fl else None,
+                                  fl[1] if fl else "missing", "≤ 2× floor, RSS ≤ 1.5 GB", imp["rss"], verdict, imp["cpu"]))
+            bf = floors.get(("build", m))
+            if bf and (imp["edges"] != bf["edges"] or imp["polygons"] != bf["polygons"]):
+                problems.append(f"{bname} {label}: import stored {imp['edges']} edges / {imp['polygons']} polygons, "
+                                f"the build gave {bf['edges']} / {bf['polygons']}")
+            chk = results.get(("check", bname, m))
+            if chk:
+                notes.append(f"{bname} {label}: mesh.check() {chk['seconds']:.2f} s, {chk['violations']} violation(s); "
+                             f"counts V/H/E/P {'/'.join(f'{c:,}' for c in chk['counts'])}")
+                if chk["violations"]:
+                    problems.append(f"{bname} {label}: check() found {chk['violations']} violations, e.g. {chk['examples']}")
+            sel = floors.get(("select", m, bname))
+            ta = results.get(("to_arrays", bname, m))
+            if ta:
+                figures.append(Figure(bname, m, f"to_arrays {label}", ta["seconds"], sel["seconds"] if sel else None,
+                                      f"SELECT {sel['seconds']:.2f} ({sel['best']})" if sel else "missing",
+                                      "— (none in SPEC)", ta["rss"], "—", ta["cpu"]))
+                if ta["mismatch"]:
+                    problems.append(f"{bname} {label}: to_arrays differs from the input in {ta['mismatch']}")
+            for fmt in ("ply", "obj"):
+                ex = results.get(("export", bname, m, fmt))
+                wf = floors.get(("write", m, fmt))
+                if not ex:
+                    continue
+                floor = parts = None
+                if sel and wf:
+                    floor = sel["seconds"] + wf["seconds"]
+                    parts = f"SELECT {sel['seconds']:.2f} + write {wf['seconds']:.2f} ({wf['best']})"
+                figures.append(Figure(bname, m, f"export {label} → .{fmt}", ex["seconds"], floor, parts or "missing",
+                                      "— (none in SPEC)", ex["rss"], "—", ex["cpu"]))
+                vb = ta and chk
+                rows_per_s = (chk["counts"][0] + chk["counts"][3]) / ex["seconds"] if vb else None
+                notes.append(f"{bname} {label}: export .{fmt} wrote {ex['bytes'] / 1e6:.1f} MB"
+                             + (f", {rows_per_s:,.0f} vertices+polygons/s" if rows_per_s else ""))
+                if ex["mismatch"]:
+                    problems.append(f"{bname} {label}: the exported .{fmt} reads back different {ex['mismatch']}")
+
+    # -- the figures
+    print()
+    print(f"hestore {hestore.__version__} bulk import/export benchmark — Python {platform.python_version()}, "
+          f"numpy {np.__version__}, SQLAlchemy {sa.__version__}; every figure one run in a fresh process")
+    print()
+    rows = []
+    for f in figures:
+        rows.append([f.backend, f.name, fmt_s(f.seconds), fmt_s(f.cpu), fmt_s(f.floor),
+                     f"{f.ratio:.2f}×" if f.ratio else "—", f.target, fmt_mib(f.rss), f.verdict])
+    print_table(["backend", "figure", "time", "its CPU", "floor", "÷floor", "target", "peak RSS", "verdict"], rows,
+                "llrrrrlrl")
+    print("(time: wall clock, the figure; its CPU: user + system time of the measuring process alone, without the")
+    print(" database server's, a hint of how much other load on the machine slowed the wall clock down)")
+    print()
+    print("Floor parts (seconds):")
+    print_table(["backend", "figure", "floor = "], [[f.backend, f.name, f.floor_parts] for f in figures], "lll")
+
+    # -- floors in detail
+    print()
+    print("Floors, every variant measured (the fastest is taken; build/parse/write: best of 2 runs, "
+          "insert/SELECT: one run each into a fresh database):")
+    rows = []
+    for key, fl in floors.items():
+        if not fl:
+            continue
+        kind, m = key[0], key[1]
+        where = key[2] if len(key) > 2 else ""
+        for name, t in fl["variants"].items():
+            mark = "← floor" if name == fl["best"] else ""
+            if "cpu" in fl:
+                name = f"{name} (its CPU {fl['cpu'][name]:.2f} s)"
+            extra = ""
+            if kind == "parse" and not fl["same"].get(name, True):
+                extra = "(differs from formats.read: not used)"
+            rows.append([kind, mesh_label(m, args.n), where, name, fmt_s(t), mark + (" " if mark and extra else "") + extra])
+        if kind == "insert" and fl.get("analyze") is not None:
+            rows.append([kind, mesh_label(m, args.n), where, "(ANALYZE after it, not in the floor)", fmt_s(fl["analyze"]), ""])
+        if kind == "insert" and "multi-row VALUES" in fl.get("details", {}):
+            d = fl["details"]["multi-row VALUES"]
+            per = sorted(set(d["rows per statement"].values()))
+            rows.append([kind, mesh_label(m, args.n), where,
+                         f"(VALUES: {'/'.join(map(str, per))} rows per statement; variable limit {d['variable limit']:,})", "", ""])
+    print_table(["floor", "mesh", "backend/fmt", "variant", "time", ""], rows, "llllrl")
+
+    # -- hestore's own parts, for comparison
+    print()
+    print("hestore's parts, measured separately (the import figure is one run of all of them, plus the writes):")
+    rows = []
+    for m in only:
+        bf = floors.get(("build", m))
+        pf = floors.get(("parse", m))
+        if not bf:
+            continue
+        label = mesh_label(m, args.n)
+        parts = [f"hestore.build.build {bf['hestore_build']:.2f} s vs numpy build floor {bf['seconds']:.2f} s "
+                 f"({bf['hestore_build'] / bf['seconds']:.1f}×)"]
+        if pf:
+            parts.append(f"formats.read {pf['formats_read']:.2f} s vs parse floor "
+                         + (f"{pf['seconds']:.2f} s ({pf['formats_read'] / pf['seconds']:.1f}×)" if pf["seconds"] else "—"))
+        rows.append([label, "; ".join(parts)])
+        for bname in backends:
+            imp = results.get(("import", bname, m))
+            ins = floors.get(("insert", m, bname))
+            if imp and ins:
+                rest = imp["seconds"] - bf["hestore_build"] - (pf["formats_read"] if pf else 0.0)
+                rows.append(["", f"{bname}: import − read − build ≈ {rest:.2f} s of writing, vs insert floor "
+                                 f"{ins['seconds']:.2f} s ({rest / ins['seconds']:.2f}×); {ins['rows']:,} rows"])
+    print_table(["mesh", "parts"], rows, "ll")
+
+    print()
+    print("Correctness and notes:")
+    for m in only:
+        bf = floors.get(("build", m))
+        if bf:
+            same = "identical arrays" if not bf["arrays_differ"] else f"arrays differ in {bf['arrays_differ']}"
+            print(f"  {mesh_label(m, args.n)}: {bf['vertices']:,} vertices, {bf['polygons']:,} polygons, "
+                  f"{bf['edges']:,} edges, {bf['halfedges']:,} half-edges; numpy build floor vs hestore.build.build: "
+                  f"{'same counts' if bf['counts_equal'] else 'DIFFERENT COUNTS'}, {same}")
+            if not bf["counts_equal"]:
+                problems.append(f"{m}: the numpy build floor gives other half-edge counts than hestore.build.build")
+            if bf["refused"]:
+                problems.append(f"{m}: hestore.build.build refused {bf['refused']} polygons")
+        pf = floors.get(("parse", m))
+        if pf and not pf["best"]:
+            problems.append(f"{m}: no parse floor reproduced formats.read")
+        for fmt in ("ply", "obj"):
+            wf = floors.get(("write", m, fmt))
+            if wf and not wf["same"]:
+                problems.append(f"{m}: the numpy .{fmt} writer floor does not read back as the input")
+    for n in notes:
+        print(f"  {n}")
+    print("  Import targets are SPEC §9's (stated for SQLite and the OBJ); they are applied to PostgreSQL and to the")
+    print("  PLY as well. Peak RSS is the child process's own ru_maxrss (the PostgreSQL server is not included);")
+    print("  1.5 GB = 1.5e9 bytes = 1,431 MiB. to_arrays/export floors exclude walking the polygon loops, which")
+    print("  hestore must do (it stores next pointers, not corner lists). The .obj write 'floor' is formats.write,")
+    print("  hestore's own writer: that ratio shows only what export adds around it.")
+    for s in skipped:
+        print(f"  SKIPPED {s}")
+    for p in problems:
+        print(f"  PROBLEM {p}")
+
+    for title, text in profiles:
+        print()
+        print(title)
+        print(text.rstrip())
+
+    # -- markdown
+    print()
+    print("| figure | backend | time | floor (its parts) | ratio | target | peak RSS | verdict |")
+    print("|---|---|---:|---|---:|---|---:|---|")
+    for f in figures:
+        floor = f"{fmt_s(f.floor)} = {f.floor_parts}" if f.floor else f.floor_parts
+        print(f"| {f.name} | {f.backend} | {fmt_s(f.seconds)} | {floor} | "
+              f"{f'{f.ratio:.2f}×' if f.ratio else '—'} | {f.target} | {fmt_mib(f.rss)} | {f.verdict} |")
+
+    # -- machine
+    print()
+    print("Machine:")
+    cpu = ""
+    with contextlib.suppress(OSError):
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    mem = ""
+    with contextlib.suppress(OSError, ValueError, IndexError):
+        with open("/proc/meminfo") as fh:
+            mem = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB RAM"
+    load_end = os.getloadavg()
+    print(f"  {os.cpu_count()} CPUs ({cpu or platform.machine()}), {mem}, {platform.platform()}")
+    print(f"  load average (1/5/15 min) {' '.join(f'{x:.2f}' for x in load_start)} at the start, "
+          f"{' '.join(f'{x:.2f}' for x in load_end)} at the end")
+    print(f"  SQLite {sqlite3.sqlite_version} (journal_mode=WAL, synchronous=NORMAL, cache_size=64 MiB, as hestore sets)")
+    print(f"  PostgreSQL {pg_version or '— (not run)'}, on the same machine")
+    try:
+        import psycopg
+
+        drivers = f"psycopg {psycopg.__version__}"
+    except ImportError:
+        drivers = "psycopg not installed"
+    print(f"  Python {platform.python_version()}, numpy {np.__version__}, SQLAlchemy {sa.__version__}, {drivers}")
+    print(f"  meshes from {args.meshes_dir}; whole run {elapsed / 60:.1f} min")
+    return problems
+
+
+if __name__ == "__main__":
+    sys.exit(main())
