@@ -13,16 +13,26 @@ Nothing here is timed by itself. It provides:
   *before* the timed region, and to check afterwards that the database agrees;
 * `CountingCursor`: counts the SQL statements hestore sends on its driver
   cursor;
-* statistics and table printing.
+* statistics and table printing;
+* for the one-command benchmarks of the large meshes (``import.py``,
+  ``graph.py``): where the shared meshes are and the grid's arrays, plain-driver
+  connections to the run's SQLite files and PostgreSQL schemas, a binary
+  ``COPY TO`` into numpy columns, a `Runner` that runs each step in a fresh
+  process (so each figure has its own peak RSS), and the machine notes.
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
 import os
+import platform
 import random
 import resource
 import shutil
+import sqlite3
+import subprocess
 import sys
 import time
 import uuid
@@ -31,6 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 from urllib.parse import quote
 
+import numpy as np
 import sqlalchemy as sa
 
 import hestore
@@ -601,3 +612,254 @@ class Model:
 def mesh_id(engine: sa.Engine, name: str = MESH) -> int:
     with engine.connect() as conn:
         return conn.execute(sa.text("SELECT id FROM meshes WHERE name = :n"), {"n": name}).scalar_one()
+
+
+# -- one-command benchmarks of large meshes (import.py, graph.py) -----------------------
+#
+# The pieces below are shared by the benchmarks that run each figure in a fresh
+# subprocess (`Runner`) on the 1 M-triangle grid and the large shared meshes.
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+FILES = {"bunny": "stanford-bunny-subdiv2.obj", "igea": "igea-subdiv1.ply"}
+MESHES = ("grid", "bunny", "igea")
+
+
+def meshes_dir() -> str:
+    """``$HESTORE_BENCH_MESHES``, else ``../shared/meshes`` next to the repository."""
+    env = os.environ.get("HESTORE_BENCH_MESHES")
+    if env:
+        return env
+    return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
+
+
+def grid_arrays(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The triangulated n×n vertex grid: positions (n², 3) and triangles (2(n-1)², 3), counter-clockwise."""
+    j, i = np.divmod(np.arange(n * n, dtype=np.int64), n)
+    positions = np.column_stack([i, j, np.zeros(n * n)]).astype(np.float64)
+    v = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    faces = np.empty((2 * len(v), 3), dtype=np.int64)
+    faces[0::2] = np.column_stack([v, v + 1, v + n + 1])
+    faces[1::2] = np.column_stack([v, v + n + 1, v + n])
+    return positions, faces
+
+
+def mesh_label(mesh: str, n: int) -> str:
+    if mesh == "grid":
+        return f"grid {n}×{n}"
+    return FILES[mesh]
+
+
+def fmt_s(x: float | None) -> str:
+    return "—" if x is None else f"{x:.2f} s"
+
+
+def fmt_mib(b: int | None) -> str:
+    return "—" if b is None else f"{b / 2**20:,.0f} MiB"
+
+
+def maxrss() -> int:
+    """Peak RSS of this process so far, in bytes."""
+    kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return kb * 1024 if sys.platform != "darwin" else kb
+
+
+def cpu_seconds() -> float:
+    """User + system CPU time of this process so far."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def best_of(fn, *args, repeat: int = 2):
+    times, out = [], None
+    for _ in range(repeat):
+        out = None
+        t0 = time.perf_counter()
+        out = fn(*args)
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+# Databases made for a run: SQLite files and PostgreSQL schemas, reached with the plain drivers.
+
+
+def sqlite_url(path: str) -> str:
+    return f"sqlite:///{path}"
+
+
+def remove_sqlite(path: str) -> None:
+    for suffix in ("", "-wal", "-shm", "-journal"):
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(path + suffix)
+
+
+def sqlite_connect(path: str) -> sqlite3.Connection:
+    """A plain connection configured as hestore configures its own."""
+    con = sqlite3.connect(path, isolation_level=None)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA synchronous=NORMAL")
+    con.execute("PRAGMA cache_size=-65536")
+    return con
+
+
+def pg_schema_url(db_url: str, schema_name: str) -> str:
+    return f"{db_url}?options={quote(f'-csearch_path={schema_name}')}"
+
+
+def pg_connect(url: str, *, autocommit: bool = False):
+    import psycopg
+
+    u = sa.engine.make_url(url)
+    kw = {"host": u.host, "port": u.port, "user": u.username, "dbname": u.database}
+    if u.password:
+        kw["password"] = u.password
+    if "options" in u.query:
+        kw["options"] = u.query["options"]
+    return psycopg.connect(autocommit=autocommit, **{k: v for k, v in kw.items() if v is not None})
+
+
+def pg_fresh_schema(db_url: str, name: str) -> str:
+    with pg_connect(db_url, autocommit=True) as conn:
+        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
+        conn.execute(f'CREATE SCHEMA "{name}"')
+    return pg_schema_url(db_url, name)
+
+
+def pg_drop_schema(db_url: str, name: str) -> None:
+    with pg_connect(db_url, autocommit=True) as conn:
+        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
+
+
+def settle(spec: dict) -> None:
+    """Before a timed region: flush dirty pages, and on PostgreSQL run a CHECKPOINT,
+    so that work left by the previous step does not land in this one."""
+    os.sync()
+    if spec.get("backend") == "postgresql":
+        with pg_connect(spec["db_url"], autocommit=True) as conn:
+            conn.execute("CHECKPOINT")
+
+
+def pg_copy_columns(cursor, exprs: list[str], rest: str, dtypes: list) -> list[np.ndarray]:
+    """``SELECT exprs rest`` as numpy columns, through one binary ``COPY TO`` of one row of ``array_agg``s.
+
+    Each expression is cast to int8 or float8 (after its dtype) and aggregated
+    into one array; the single row that comes back is decoded with
+    ``np.frombuffer``. (A row-per-row ``COPY TO`` is far slower: the driver
+    hands over every row as its own message.) NULL elements are not supported.
+    """
+    aggs = ", ".join(f"array_agg(({e})::{'float8' if np.dtype(d).kind == 'f' else 'int8'})"
+                     for e, d in zip(exprs, dtypes))
+    with cursor.copy(f"COPY (SELECT {aggs} {rest}) TO STDOUT (FORMAT BINARY)") as copy:
+        buf = b"".join(copy)
+    pos = 19 + 2  # signature, flags, header extension; then the row's field count
+    columns = []
+    for dtype in dtypes:
+        value = ">f8" if np.dtype(dtype).kind == "f" else ">i8"
+        item = np.dtype([("length", ">i4"), ("value", value)])
+        length = int.from_bytes(buf[pos : pos + 4], "big", signed=True)
+        if length < 0:  # array_agg of no rows is NULL
+            columns.append(np.empty(0, dtype=dtype))
+            pos += 4
+            continue
+        count = int.from_bytes(buf[pos + 16 : pos + 20], "big")  # after ndim, flags, element type
+        columns.append(np.frombuffer(buf, dtype=item, count=count, offset=pos + 24)["value"].astype(dtype))
+        pos += 4 + length
+    return columns
+
+
+# Running each figure in a fresh process.
+
+
+class Runner:
+    """Runs ``script --child SPEC_JSON`` in a fresh process per step; the child writes its result as JSON."""
+
+    def __init__(self, script: str, workdir: str, timeout: float) -> None:
+        self.script = os.path.abspath(script)
+        self.workdir = workdir
+        self.timeout = timeout
+        self.errors: list[str] = []
+        self._k = 0
+
+    def run(self, **spec) -> dict | None:
+        self._k += 1
+        spec["result"] = os.path.join(self.workdir, f"result-{self._k}.json")
+        spec["workdir"] = self.workdir
+        what = " ".join(str(spec[k]) for k in ("job", "backend", "mesh", "fmt", "kind", "what", "variant") if spec.get(k))
+        if spec.get("profile"):
+            what += " (under cProfile)"
+        t0 = time.perf_counter()
+        try:
+            proc = subprocess.run([sys.executable, self.script, "--child", json.dumps(spec)],
+                                  timeout=self.timeout, stdout=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            self.errors.append(f"{what}: timed out after {self.timeout:.0f} s")
+            log(self.errors[-1])
+            return None
+        if proc.returncode != 0 or not os.path.exists(spec["result"]):
+            self.errors.append(f"{what}: the child process failed (exit {proc.returncode}; its traceback is above)")
+            log(self.errors[-1])
+            return None
+        with open(spec["result"]) as f:
+            result = json.load(f)
+        os.remove(spec["result"])
+        log(f"{what}: done in {time.perf_counter() - t0:.1f} s")
+        return result
+
+
+def child_main(jobs: dict, spec_json: str) -> int:
+    """The child side of `Runner.run`: run ``jobs[spec["job"]](spec)``, write its result, exit.
+
+    The process ends with ``os._exit``: a job may leave gigabytes of Python
+    objects (a networkx graph) that the interpreter would otherwise free one
+    by one on the way out, for nothing.
+    """
+    spec = json.loads(spec_json)
+    result = jobs[spec["job"]](spec)
+    with open(spec["result"], "w") as f:
+        json.dump(result, f)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+class PgRun(PostgresBackend):
+    """The run's PostgreSQL database (made at the start, dropped by ``cleanup``)."""
+
+    @property
+    def url(self) -> str:
+        return self.db_url.render_as_string(hide_password=False)
+
+    def version(self) -> str:
+        with self._eng.connect() as conn:
+            return conn.execute(sa.text("SHOW server_version")).scalar()
+
+
+def print_machine(pg_version: str | None, load_start: tuple, meshes: str, elapsed: float, libraries: str = "") -> None:
+    """The machine notes that end a benchmark's output."""
+    print()
+    print("Machine:")
+    cpu = ""
+    with contextlib.suppress(OSError):
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    mem = ""
+    with contextlib.suppress(OSError, ValueError, IndexError):
+        with open("/proc/meminfo") as fh:
+            mem = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB RAM"
+    load_end = os.getloadavg()
+    print(f"  {os.cpu_count()} CPUs ({cpu or platform.machine()}), {mem}, {platform.platform()}")
+    print(f"  load average (1/5/15 min) {' '.join(f'{x:.2f}' for x in load_start)} at the start, "
+          f"{' '.join(f'{x:.2f}' for x in load_end)} at the end")
+    print(f"  SQLite {sqlite3.sqlite_version} (journal_mode=WAL, synchronous=NORMAL, cache_size=64 MiB, as hestore sets)")
+    print(f"  PostgreSQL {pg_version or '— (not run)'}, on the same machine")
+    try:
+        import psycopg
+
+        drivers = f"psycopg {psycopg.__version__}"
+    except ImportError:
+        drivers = "psycopg not installed"
+    print(f"  Python {platform.python_version()}, numpy {np.__version__}, SQLAlchemy {sa.__version__}, {drivers}"
+          + (f", {libraries}" if libraries else ""))
+    print(f"  meshes from {meshes}; whole run {elapsed / 60:.1f} min")

@@ -57,14 +57,11 @@ import contextlib
 import cProfile
 import io
 import itertools
-import json
 import os
 import platform
 import pstats
-import resource
 import shutil
 import sqlite3
-import subprocess
 import sys
 import tempfile
 import time
@@ -80,36 +77,44 @@ import sqlalchemy as sa  # noqa: E402
 import hestore  # noqa: E402
 from hestore import formats, schema  # noqa: E402
 from hestore.build import Ragged, build  # noqa: E402
-from _common import DEFAULT_PG_URL, PostgresBackend, log, pg_problem, print_table  # noqa: E402
+from _common import (  # noqa: E402
+    DEFAULT_PG_URL,
+    FILES,
+    MESHES,
+    PgRun,
+    Runner,
+    best_of,
+    child_main,
+    cpu_seconds,
+    fmt_mib,
+    fmt_s,
+    grid_arrays,
+    log,
+    maxrss,
+    mesh_label,
+    meshes_dir,
+    pg_connect,
+    pg_copy_columns,
+    pg_drop_schema,
+    pg_fresh_schema,
+    pg_problem,
+    pg_schema_url,
+    print_machine,
+    print_table,
+    remove_sqlite,
+    settle,
+    sqlite_connect,
+    sqlite_url,
+)
 
 TARGET_RATIO = 2.0
 TARGET_RSS = 1.5e9  # bytes ("1.5 GB")
 CHUNK_ROWS = 131072  # rows per batch in the driver floors, as hestore's writer
 VALUES_ROWS = 1000  # rows per multi-row INSERT (capped by SQLite's variable limit)
-FILES = {"bunny": "stanford-bunny-subdiv2.obj", "igea": "igea-subdiv1.ply"}
-MESHES = ("grid", "bunny", "igea")
 
 
 # ==========================================================================
 # Inputs
-
-
-def meshes_dir() -> str:
-    env = os.environ.get("HESTORE_BENCH_MESHES")
-    if env:
-        return env
-    return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
-
-
-def grid_arrays(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The triangulated n×n vertex grid: positions (n², 3) and triangles (2(n-1)², 3), counter-clockwise."""
-    j, i = np.divmod(np.arange(n * n, dtype=np.int64), n)
-    positions = np.column_stack([i, j, np.zeros(n * n)]).astype(np.float64)
-    v = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
-    faces = np.empty((2 * len(v), 3), dtype=np.int64)
-    faces[0::2] = np.column_stack([v, v + 1, v + n + 1])
-    faces[1::2] = np.column_stack([v, v + n + 1, v + n])
-    return positions, faces
 
 
 @dataclass
@@ -459,23 +464,7 @@ def select_pg_array_agg(cursor, mesh_id: int, placeholder: str) -> list[np.ndarr
     out = []
     for table, cols, dtype in _SELECTS:
         names = [c.strip() for c in cols.split(",")]
-        pg_type, value = ("float8", ">f8") if dtype is np.float64 else ("int8", ">i8")
-        aggs = ", ".join(f"array_agg({c}::{pg_type})" for c in names)
-        with cursor.copy(f"COPY (SELECT {aggs} FROM {table} WHERE mesh_id = {int(mesh_id)}) TO STDOUT (FORMAT BINARY)") as copy:
-            buf = b"".join(copy)
-        pos = 19 + 2  # signature, flags, header extension; then the row's field count
-        item = np.dtype([("length", ">i4"), ("value", value)])
-        columns = []
-        for _ in names:
-            length = int.from_bytes(buf[pos : pos + 4], "big", signed=True)
-            if length < 0:  # array_agg of no rows is NULL
-                columns.append(np.empty(0, dtype=dtype))
-                pos += 4
-                continue
-            count = int.from_bytes(buf[pos + 16 : pos + 20], "big")  # after ndim, flags, element type
-            columns.append(np.frombuffer(buf, dtype=item, count=count, offset=pos + 24)["value"].astype(dtype))
-            pos += 4 + length
-        del buf
+        columns = pg_copy_columns(cursor, names, f"FROM {table} WHERE mesh_id = {int(mesh_id)}", [dtype] * len(names))
         out.append(_by_id(np.column_stack(columns)))
     return out
 
@@ -507,88 +496,8 @@ def write_ply_numpy(path: str, positions: np.ndarray, offsets: np.ndarray, indic
 # Databases
 
 
-def sqlite_url(path: str) -> str:
-    return f"sqlite:///{path}"
-
-
-def remove_sqlite(path: str) -> None:
-    for suffix in ("", "-wal", "-shm", "-journal"):
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(path + suffix)
-
-
-def sqlite_connect(path: str) -> sqlite3.Connection:
-    """A plain connection configured as hestore configures its own."""
-    con = sqlite3.connect(path, isolation_level=None)
-    con.execute("PRAGMA journal_mode=WAL")
-    con.execute("PRAGMA synchronous=NORMAL")
-    con.execute("PRAGMA cache_size=-65536")
-    return con
-
-
-def pg_schema_url(db_url: str, schema_name: str) -> str:
-    from urllib.parse import quote
-
-    return f"{db_url}?options={quote(f'-csearch_path={schema_name}')}"
-
-
-def pg_connect(url: str, *, autocommit: bool = False):
-    import psycopg
-
-    u = sa.engine.make_url(url)
-    kw = {"host": u.host, "port": u.port, "user": u.username, "dbname": u.database}
-    if u.password:
-        kw["password"] = u.password
-    if "options" in u.query:
-        kw["options"] = u.query["options"]
-    return psycopg.connect(autocommit=autocommit, **{k: v for k, v in kw.items() if v is not None})
-
-
-def pg_fresh_schema(db_url: str, name: str) -> str:
-    with pg_connect(db_url, autocommit=True) as conn:
-        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
-        conn.execute(f'CREATE SCHEMA "{name}"')
-    return pg_schema_url(db_url, name)
-
-
-def pg_drop_schema(db_url: str, name: str) -> None:
-    with pg_connect(db_url, autocommit=True) as conn:
-        conn.execute(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
-
-
-def settle(spec: dict) -> None:
-    """Before a timed region: flush dirty pages, and on PostgreSQL run a CHECKPOINT,
-    so that work left by the previous step does not land in this one."""
-    os.sync()
-    if spec.get("backend") == "postgresql":
-        with pg_connect(spec["db_url"], autocommit=True) as conn:
-            conn.execute("CHECKPOINT")
-
-
 # ==========================================================================
 # Child jobs (each runs in its own process)
-
-
-def maxrss() -> int:
-    """Peak RSS of this process so far, in bytes."""
-    kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return kb * 1024 if sys.platform != "darwin" else kb
-
-
-def cpu_seconds() -> float:
-    """User + system CPU time of this process so far."""
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
-
-def best_of(fn, *args, repeat: int = 2):
-    times, out = [], None
-    for _ in range(repeat):
-        out = None
-        t0 = time.perf_counter()
-        out = fn(*args)
-        times.append(time.perf_counter() - t0)
-    return min(times), out
 
 
 def job_parse_floor(spec: dict) -> dict:
@@ -866,61 +775,6 @@ JOBS = {
 }
 
 
-def child_main(spec_json: str) -> int:
-    spec = json.loads(spec_json)
-    result = JOBS[spec["job"]](spec)
-    with open(spec["result"], "w") as f:
-        json.dump(result, f)
-    return 0
-
-
-# ==========================================================================
-# The parent: running the jobs
-
-
-class Runner:
-    def __init__(self, workdir: str, timeout: float) -> None:
-        self.workdir = workdir
-        self.timeout = timeout
-        self.errors: list[str] = []
-        self._k = 0
-
-    def run(self, **spec) -> dict | None:
-        self._k += 1
-        spec["result"] = os.path.join(self.workdir, f"result-{self._k}.json")
-        spec["workdir"] = self.workdir
-        what = " ".join(str(spec[k]) for k in ("job", "backend", "mesh", "fmt") if spec.get(k))
-        t0 = time.perf_counter()
-        try:
-            proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", json.dumps(spec)],
-                                  timeout=self.timeout, stdout=subprocess.DEVNULL)
-        except subprocess.TimeoutExpired:
-            self.errors.append(f"{what}: timed out after {self.timeout:.0f} s")
-            log(self.errors[-1])
-            return None
-        if proc.returncode != 0 or not os.path.exists(spec["result"]):
-            self.errors.append(f"{what}: the child process failed (exit {proc.returncode}; its traceback is above)")
-            log(self.errors[-1])
-            return None
-        with open(spec["result"]) as f:
-            result = json.load(f)
-        os.remove(spec["result"])
-        log(f"{what}: done in {time.perf_counter() - t0:.1f} s")
-        return result
-
-
-class PgRun(PostgresBackend):
-    """The run's PostgreSQL database (made at the start, dropped by ``cleanup``)."""
-
-    @property
-    def url(self) -> str:
-        return self.db_url.render_as_string(hide_password=False)
-
-    def version(self) -> str:
-        with self._eng.connect() as conn:
-            return conn.execute(sa.text("SHOW server_version")).scalar()
-
-
 @dataclass
 class Figure:
     backend: str
@@ -941,20 +795,6 @@ class Figure:
         return self.seconds / self.floor
 
 
-def fmt_s(x: float | None) -> str:
-    return "—" if x is None else f"{x:.2f} s"
-
-
-def fmt_mib(b: int | None) -> str:
-    return "—" if b is None else f"{b / 2**20:,.0f} MiB"
-
-
-def mesh_label(mesh: str, n: int) -> str:
-    if mesh == "grid":
-        return f"grid {n}×{n}"
-    return FILES[mesh]
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql (default both)")
@@ -971,7 +811,7 @@ def main(argv=None) -> int:
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
-        return child_main(args.child)
+        return child_main(JOBS, args.child)
 
     only = [m.strip() for m in args.only.split(",") if m.strip()]
     backends = [b.strip() for b in args.backends.split(",") if b.strip()]
@@ -993,7 +833,7 @@ def main(argv=None) -> int:
     own_workdir = args.workdir is None
     workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_import_")
     os.makedirs(workdir, exist_ok=True)
-    runner = Runner(workdir, args.timeout)
+    runner = Runner(__file__, workdir, args.timeout)
     base = {"n": args.n, "dir": args.meshes_dir}
     load_start = os.getloadavg()
     t_start = time.perf_counter()
@@ -1267,34 +1107,7 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
         print(f"| {f.name} | {f.backend} | {fmt_s(f.seconds)} | {floor} | "
               f"{f'{f.ratio:.2f}×' if f.ratio else '—'} | {f.target} | {fmt_mib(f.rss)} | {f.verdict} |")
 
-    # -- machine
-    print()
-    print("Machine:")
-    cpu = ""
-    with contextlib.suppress(OSError):
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    mem = ""
-    with contextlib.suppress(OSError, ValueError, IndexError):
-        with open("/proc/meminfo") as fh:
-            mem = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB RAM"
-    load_end = os.getloadavg()
-    print(f"  {os.cpu_count()} CPUs ({cpu or platform.machine()}), {mem}, {platform.platform()}")
-    print(f"  load average (1/5/15 min) {' '.join(f'{x:.2f}' for x in load_start)} at the start, "
-          f"{' '.join(f'{x:.2f}' for x in load_end)} at the end")
-    print(f"  SQLite {sqlite3.sqlite_version} (journal_mode=WAL, synchronous=NORMAL, cache_size=64 MiB, as hestore sets)")
-    print(f"  PostgreSQL {pg_version or '— (not run)'}, on the same machine")
-    try:
-        import psycopg
-
-        drivers = f"psycopg {psycopg.__version__}"
-    except ImportError:
-        drivers = "psycopg not installed"
-    print(f"  Python {platform.python_version()}, numpy {np.__version__}, SQLAlchemy {sa.__version__}, {drivers}")
-    print(f"  meshes from {args.meshes_dir}; whole run {elapsed / 60:.1f} min")
+    print_machine(pg_version, load_start, args.meshes_dir, elapsed)
     return problems
 
 

@@ -3,8 +3,10 @@
 Mostly in-process through `hestore.cli.main` on a SQLite file; once as a real
 process (``python -m hestore`` and the installed console script) to prove that
 errors reach the user as one line, not a traceback; ``db upgrade`` from an
-older schema, ``import``, ``export`` and ``info`` also on PostgreSQL. The
-progress bar is tested on its own with a fake terminal and a fake clock.
+older schema, ``import``, ``export``, ``info`` and ``graph`` also on PostgreSQL
+(``info`` and ``graph`` on small meshes built with the API: a wireframe with
+a self-loop and parallel edges, a disc, two components, a torus, a bowtie).
+The progress bar is tested on its own with a fake terminal and a fake clock.
 """
 
 from __future__ import annotations
@@ -529,35 +531,65 @@ def test_info(capsys, db_url, tmp_path):
     code, out, err = run(capsys, "--db", db_url, "info", "sq")
     assert (code, err) == (0, "")
     assert out.splitlines() == [
-        "name:            sq",
-        f"revision:        {revision}",
-        "self-loops:      allowed",
-        "parallel edges:  allowed",
-        "vertices:        5",
-        "half-edges:      12",
-        "edges:           6",
-        "polygons:        2",
+        "name:                    sq",
+        f"revision:                {revision}",
+        "self-loops allowed:      yes",
+        "parallel edges allowed:  yes",
+        "vertices:                5",
+        "isolated vertices:       0",
+        "edges:                   6",
+        "self-loops:              0",
+        "parallel edges:          0",
+        "half-edges:              12",
+        "polygons:                2",
+        "polygon sizes:           3: 1, 4: 1",
+        "boundary edges:          5",
+        "wire edges:              0",
+        "boundary loops:          1",
+        "components:              1",
+        "Euler characteristic:    1",
+        "genus:                   0",
+        "pinched vertices:        0",
+        "closed:                  no",
+        "manifold:                yes",
     ]
 
     code, out, err = run(capsys, "--db", db_url, "info", "sq", "--json")
     assert (code, err) == (0, "")
-    assert json.loads(out) == {
+    info = json.loads(out)
+    assert info == {
         "name": "sq",
         "revision": revision,
         "allow_loops": True,
         "allow_multi_edges": True,
         "vertices": 5,
-        "halfedges": 12,
+        "isolated_vertices": 0,
         "edges": 6,
+        "loops": 0,
+        "parallel_edges": 0,
+        "halfedges": 12,
         "polygons": 2,
+        "polygon_sizes": {"3": 1, "4": 1},  # JSON object keys are strings
+        "boundary_edges": 5,
+        "wire_edges": 0,
+        "boundary_loops": 1,
+        "components": 1,
+        "euler_characteristic": 1,
+        "genus": 0,
+        "pinched_vertices": 0,
+        "is_closed": False,
+        "is_manifold": True,
     }
+    assert list(info) == list(cli._INFO_LABELS)  # every field has a label, in the order shown
 
     code, out, _ = run(capsys, "--db", db_url, "info", "strict")
     assert code == 0
-    assert "self-loops:      forbidden" in out and "parallel edges:  forbidden" in out
+    assert "self-loops allowed:      no" in out and "parallel edges allowed:  no" in out
+    assert "polygon sizes:           -\n" in out
     code, out, _ = run(capsys, "--db", db_url, "info", "--json", "strict")
     info = json.loads(out)
     assert (info["allow_loops"], info["allow_multi_edges"], info["vertices"], info["edges"]) == (False, False, 1, 0)
+    assert (info["isolated_vertices"], info["components"], info["polygon_sizes"]) == (1, 1, {})
 
     assert_one_line_error(*run(capsys, "--db", db_url, "info", "missing"))
     assert_one_line_error(*run(capsys, "--db", db_url, "info", "missing", "--json"))
@@ -573,6 +605,326 @@ def test_help_names_the_new_commands(capsys):
     assert code == 0 and "--ascii" in out
     code, out, _ = run(capsys, "info", "--help")
     assert code == 0 and "--json" in out
+    code, out, _ = run(capsys, "graph", "--help")
+    assert code == 0 and all(word in out for word in ("components", "path", "degree-histogram", "export"))
+    code, out, _ = run(capsys, "graph", "NAME", "export", "--help")
+    assert code == 0 and "--kind" in out and "GraphML" in out
+    from hestore import graphs
+
+    assert cli._GRAPH_KINDS == graphs.KINDS  # --kind offers every kind, the default first
+
+
+# -- info on other shapes, and graph ---------------------------------------------------
+
+
+def build_meshes(url: str) -> dict[str, dict[str, int]]:
+    """Small meshes built with the API; returns each one's vertex ids by name.
+
+    - ``wire``: a wireframe a-b twice (parallel edges), b-c, a self-loop at c,
+      and d, isolated and without a position;
+    - ``disc``: a 3×2 grid of vertices 0..5 covered by the quad 0 1 4 3 and
+      the triangles 1 2 5, 1 5 4 — one boundary loop, mixed arities;
+    - ``two``: two triangles that share nothing — two components;
+    - ``dust``: twelve isolated vertices, the first two joined by an edge;
+    - ``torus``: the 3×3 quad grid with opposite sides glued (import_arrays);
+    - ``bowtie``: two triangles meeting at one vertex, which is pinched;
+    - ``empty``: nothing at all.
+    """
+    ids: dict[str, dict[str, int]] = {}
+    with hestore.open(url) as store:
+        wire = store.create_mesh("wire")
+        a, b, c = (wire.add_vertex(p) for p in [(0, 0, 0), (1, 0, 0), (2, 0, 0)])
+        d = wire.add_vertex()
+        for u, v in [(a, b), (a, b), (b, c), (c, c)]:
+            wire.add_edge(u, v)
+        ids["wire"] = {"a": a.id, "b": b.id, "c": c.id, "d": d.id}
+
+        disc = store.create_mesh("disc")
+        vs = [disc.add_vertex((x, y, 0)) for y in range(2) for x in range(3)]
+        with store.transaction():
+            for loop in ([0, 1, 4, 3], [1, 2, 5], [1, 5, 4]):
+                disc.add_polygon([vs[i] for i in loop])
+        ids["disc"] = {str(i): v.id for i, v in enumerate(vs)}
+
+        two = store.create_mesh("two")
+        vs = [two.add_vertex((x + 5 * k, y, 0)) for k in range(2) for x, y in [(0, 0), (1, 0), (0, 1)]]
+        two.add_polygon(vs[:3])
+        two.add_polygon(vs[3:])
+
+        dust = store.create_mesh("dust")
+        vs = [dust.add_vertex((i, 0, 0)) for i in range(12)]
+        dust.add_edge(vs[0], vs[1])
+        ids["dust"] = {str(i): v.id for i, v in enumerate(vs)}
+
+        n = 3
+        positions = [(i, j, 0) for j in range(n) for i in range(n)]
+        quads = [
+            [j * n + i, j * n + (i + 1) % n, ((j + 1) % n) * n + (i + 1) % n, ((j + 1) % n) * n + i]
+            for j in range(n)
+            for i in range(n)
+        ]
+        store.import_arrays("torus", positions, quads)
+
+        bowtie = store.create_mesh("bowtie")
+        vs = [bowtie.add_vertex(p) for p in [(0, 0, 0), (-1, -1, 0), (-1, 1, 0), (1, 1, 0), (1, -1, 0)]]
+        bowtie.add_polygon([vs[0], vs[1], vs[2]])
+        bowtie.add_polygon([vs[0], vs[3], vs[4]])
+
+        store.create_mesh("empty")
+    return ids
+
+
+def stats_of(url: str, name: str) -> dict:
+    with hestore.open(url) as store:
+        mesh = store.mesh(name)
+        return {"revision": mesh.revision, **mesh.stats().as_dict()}
+
+
+def info_lines(out: str) -> dict[str, str]:
+    """The text form of ``info`` as label -> value."""
+    return {label: value.strip() for label, value in (line.split(":  ", 1) for line in out.splitlines())}
+
+
+def test_info_of_other_shapes(capsys, db_url):
+    build_meshes(db_url)
+    expected = {
+        # name: (vertices, isolated, edges, loops, parallel, polygons, wire, components, χ, genus, closed, manifold)
+        "wire": (4, 1, 4, 1, 1, 0, 4, 2, 0, None, False, False),
+        "disc": (6, 0, 8, 0, 0, 3, 0, 1, 1, 0, False, True),
+        "two": (6, 0, 6, 0, 0, 2, 0, 2, 2, 0, False, True),
+        "torus": (9, 0, 18, 0, 0, 9, 0, 1, 0, 1, True, True),
+        "bowtie": (5, 0, 6, 0, 0, 2, 0, 1, 1, None, False, False),
+        "empty": (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, True, True),
+    }
+    fields = (
+        "vertices", "isolated_vertices", "edges", "loops", "parallel_edges", "polygons", "wire_edges",
+        "components", "euler_characteristic", "genus", "is_closed", "is_manifold",
+    )  # fmt: skip
+    for name, values in expected.items():
+        code, out, err = run(capsys, "--db", db_url, "info", name, "--json")
+        assert (code, err) == (0, ""), name
+        info = json.loads(out)
+        assert tuple(info[f] for f in fields) == values, name
+        # Everything else as the API says, JSON turning the arities into strings.
+        api = stats_of(db_url, name)
+        api["polygon_sizes"] = {str(k): v for k, v in api["polygon_sizes"].items()}
+        assert {k: v for k, v in info.items() if k in api} == api, name
+        assert info["name"] == name and info["halfedges"] == 2 * info["edges"]
+
+        code, text, err = run(capsys, "--db", db_url, "info", name)
+        assert (code, err) == (0, ""), name
+        lines = text.splitlines()
+        assert len(lines) == len(info) <= 24, name  # one screen
+        shown = info_lines(text)
+        assert shown["closed"] == ("yes" if info["is_closed"] else "no")
+        assert shown["manifold"] == ("yes" if info["is_manifold"] else "no")
+        assert shown["Euler characteristic"] == str(info["euler_characteristic"])
+
+    code, out, _ = run(capsys, "--db", db_url, "info", "wire")
+    shown = info_lines(out)
+    assert shown["genus"].startswith("- (wire edges")
+    assert (shown["self-loops"], shown["parallel edges"], shown["polygon sizes"]) == ("1", "1", "-")
+    code, out, _ = run(capsys, "--db", db_url, "info", "bowtie")
+    assert "genus:                   - (pinched vertices)\n" in out and "pinched vertices:        1\n" in out
+    code, out, _ = run(capsys, "--db", db_url, "info", "torus")
+    assert "genus:                   1\n" in out and "polygon sizes:           4: 9\n" in out
+    assert "boundary loops:          0\n" in out
+    code, out, _ = run(capsys, "--db", db_url, "info", "disc")
+    assert "polygon sizes:           3: 2, 4: 1\n" in out and "boundary loops:          1\n" in out
+
+
+def test_graph_components(capsys, db_url):
+    ids = build_meshes(db_url)
+    w = ids["wire"]
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire", "components")
+    assert (code, err) == (0, "")
+    assert out.splitlines() == [
+        "2 components of 4 vertices, the largest first:",
+        f"  3 vertices (lowest id {min(w['a'], w['b'], w['c'])})",
+        f"  1 vertex (lowest id {w['d']})",
+    ]
+
+    # Eleven components, ten listed: one of two vertices, then single vertices by id.
+    code, out, err = run(capsys, "--db", db_url, "graph", "dust", "components")
+    assert (code, err) == (0, "")
+    d = ids["dust"]
+    assert out.splitlines() == [
+        "11 components of 12 vertices, the largest first:",
+        f"  2 vertices (lowest id {d['0']})",
+        *(f"  1 vertex (lowest id {d[str(i)]})" for i in range(2, 11)),
+        "  ... and 1 more, of 1 vertex or fewer each",
+    ]
+
+    assert run(capsys, "--db", db_url, "graph", "two", "components")[1].splitlines()[0] == (
+        "2 components of 6 vertices, the largest first:"
+    )
+    assert run(capsys, "--db", db_url, "graph", "disc", "components") == (
+        0, f"1 component of 6 vertices:\n  6 vertices (lowest id {ids['disc']['0']})\n", "",
+    )  # fmt: skip
+    assert run(capsys, "--db", db_url, "graph", "empty", "components") == (0, "0 components of 0 vertices\n", "")
+    assert_one_line_error(*run(capsys, "--db", db_url, "graph", "missing", "components"))
+
+
+def test_graph_path(capsys, db_url):
+    ids = build_meshes(db_url)
+    w, g = ids["wire"], ids["disc"]
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire", "path", str(w["a"]), str(w["c"]))
+    assert (code, err) == (0, "")
+    assert out == f"path: {w['a']} {w['b']} {w['c']}\nlength: 2 edges\n"
+    # Across the disc: through the quad's corner 1, not around the boundary.
+    code, out, err = run(capsys, "--db", db_url, "graph", "disc", "path", str(g["0"]), str(g["5"]))
+    assert (code, out) == (0, f"path: {g['0']} {g['1']} {g['5']}\nlength: 2 edges\n")
+    code, out, _ = run(capsys, "--db", db_url, "graph", "disc", "path", str(g["4"]), str(g["3"]))
+    assert (code, out) == (0, f"path: {g['4']} {g['3']}\nlength: 1 edge\n")
+    assert run(capsys, "--db", db_url, "graph", "wire", "path", str(w["c"]), str(w["c"])) == (
+        0, f"path: {w['c']}\nlength: 0 edges\n", "",
+    )  # fmt: skip
+
+    # No path: said on stdout, exit status 1.
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire", "path", str(w["a"]), str(w["d"]))
+    assert (code, err) == (1, "")
+    assert out == f"no path from vertex {w['a']} to vertex {w['d']} in 'wire': they are in different components\n"
+
+    for a, b in [(w["a"], 99), (99, w["a"]), (-1, w["a"])]:
+        code, out, err = run(capsys, "--db", db_url, "graph", "wire", "path", str(a), str(b))
+        assert_one_line_error(code, out, err)
+        bad = a if a != w["a"] else b
+        assert f"vertex {bad} does not exist" in err, err
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire", "path", "a", "1")
+    assert code == 2 and "invalid int value" in err
+    assert_one_line_error(*run(capsys, "--db", db_url, "graph", "missing", "path", "0", "1"))
+
+
+def test_graph_degree_histogram(capsys, db_url):
+    build_meshes(db_url)
+    # a: the two parallel edges; b: those and b-c; c: b-c and the loop, twice; d: nothing.
+    assert run(capsys, "--db", db_url, "graph", "wire", "degree-histogram") == (0, "0: 1\n2: 1\n3: 2\n", "")
+    assert run(capsys, "--db", db_url, "graph", "disc", "degree-histogram") == (0, "2: 3\n3: 2\n4: 1\n", "")
+    assert run(capsys, "--db", db_url, "graph", "torus", "degree-histogram") == (0, "4: 9\n", "")
+    code, out, err = run(capsys, "--db", db_url, "graph", "empty", "degree-histogram")
+    assert (code, out) == (0, "") and "no vertices" in err
+    assert_one_line_error(*run(capsys, "--db", db_url, "graph", "missing", "degree-histogram"))
+
+
+def views(url: str, name: str, kind: str):
+    with hestore.open(url) as store:
+        return store.mesh(name).to_networkx(kind)
+
+
+@pytest.mark.parametrize("kind", ["multigraph", "graph", "halfedge", "dual", None])
+@pytest.mark.parametrize("name", ["wire", "disc"])
+def test_graph_export_graphml(capsys, db_url, tmp_path, name, kind):
+    import networkx as nx
+
+    ids = build_meshes(db_url)
+    view = views(db_url, name, kind or "multigraph")
+    target = tmp_path / f"{name}.graphml"
+    argv = ["--db", db_url, "graph", name, "export", str(target)] + (["--kind", kind] if kind else [])
+    code, out, err = run(capsys, *argv)
+    assert (code, err) == (0, ""), err
+    n, m = view.number_of_nodes(), view.number_of_edges()
+    assert out == (
+        f"wrote the {kind or 'multigraph'} view of {name!r} to {target} (GraphML): "
+        f"{n} node{'s' * (n != 1)}, {m} edge{'s' * (m != 1)}, {target.stat().st_size} bytes\n"
+    )
+
+    back = nx.read_graphml(target, node_type=int, force_multigraph=view.is_multigraph())
+    assert (back.is_directed(), back.is_multigraph()) == (view.is_directed(), view.is_multigraph())
+    assert sorted(back.nodes) == sorted(view.nodes)
+    assert back.number_of_edges() == m
+    if view.is_multigraph():  # the keys (edge or half-edge ids) survive as GraphML edge ids
+        assert sorted(back.edges(keys=True)) == sorted(view.edges(keys=True))
+    else:
+        assert sorted(map(sorted, back.edges)) == sorted(map(sorted, view.edges))
+    # Scalars are kept, None left out, tuples and lists written as JSON text.
+    for node, data in view.nodes(data=True):
+        for attr, value in data.items():
+            if value is None:
+                assert attr not in back.nodes[node]
+            elif isinstance(value, (tuple, list)):
+                assert json.loads(back.nodes[node][attr]) == json.loads(json.dumps(list(value)))
+            else:
+                assert back.nodes[node][attr] == value
+    if (kind or "multigraph") == "multigraph" and name == "wire":
+        w = ids["wire"]
+        assert "pos" not in back.nodes[w["d"]]  # no position
+        assert json.loads(back.nodes[w["b"]]["pos"]) == [1.0, 0.0, 0.0]
+    for edge in view.edges(keys=True) if view.is_multigraph() else view.edges:
+        data = view.edges[edge]
+        got = back.edges[edge]
+        assert set(got) == {attr for attr, value in data.items() if value is not None}
+        for attr, value in got.items():
+            if isinstance(data[attr], (tuple, list)):  # e.g. polygons (3, None) -> "[3, null]"
+                assert json.loads(value) == [*data[attr]]
+            else:
+                assert value == data[attr]
+    # The graph's own attributes: mesh, revision, kind (read_graphml adds empty defaults).
+    assert {k: v for k, v in back.graph.items() if not k.endswith("_default")} == view.graph
+
+
+@pytest.mark.parametrize("kind", ["multigraph", "graph", "halfedge", "dual"])
+def test_graph_export_edgelist(capsys, db_url, tmp_path, kind):
+    import networkx as nx
+
+    build_meshes(db_url)
+    for name in ("wire", "disc"):
+        view = views(db_url, name, kind)
+        target = tmp_path / f"{name}-{kind}.edgelist"
+        code, out, err = run(capsys, "--db", db_url, "graph", name, "export", str(target), "--kind", kind)
+        assert (code, err) == (0, ""), err
+        assert out.startswith(f"wrote the {kind} view of {name!r} to {target} (edge list): ")
+        cls = {(False, False): nx.Graph, (True, False): nx.MultiGraph, (True, True): nx.MultiDiGraph}[
+            (view.is_multigraph(), view.is_directed())
+        ]
+        back = nx.read_edgelist(target, create_using=cls, nodetype=int)
+        assert back.number_of_edges() == view.number_of_edges()
+        # An edge list has no isolated nodes.
+        assert sorted(back.nodes) == sorted(v for v in view.nodes if view.degree(v) > 0)
+        # Each line is `u v {attributes}`, a multigraph's key among them as "key",
+        # which read_edgelist hands to add_edge: the keys come back as keys.
+        if view.is_multigraph():
+            edges, expected = back.edges(keys=True, data=True), view.edges(keys=True, data=True)
+        else:
+            edges, expected = back.edges(data=True), view.edges(data=True)
+        if not view.is_directed():  # as unordered pairs
+            edges = [(min(e[:2]), max(e[:2]), *e[2:]) for e in edges]
+            expected = [(min(e[:2]), max(e[:2]), *e[2:]) for e in expected]
+        # The attributes too: literals, None and tuples included.
+        assert sorted(edges, key=repr) == sorted(expected, key=repr)
+
+
+def test_graph_export_errors(capsys, db_url, tmp_path):
+    build_meshes(db_url)
+    for argv, message in [
+        (["graph", "wire", "export", str(tmp_path / "g.txt")], "unsupported graph file format '.txt'"),
+        (["graph", "wire", "export", str(tmp_path / "g")], "unsupported graph file format (no extension)"),
+        (["graph", "wire", "export", str(tmp_path / "no" / "such" / "g.graphml")], "No such file or directory"),
+        (["graph", "wire", "export", str(tmp_path / "no" / "such" / "g.edgelist")], "No such file or directory"),
+        (["graph", "missing", "export", str(tmp_path / "g.graphml")], "missing"),
+    ]:
+        code, out, err = run(capsys, "--db", db_url, *argv)
+        assert_one_line_error(code, out, err)
+        assert message in err, err
+    assert list(tmp_path.glob("g*")) == []
+    target = str(tmp_path / "g.graphml")
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire", "export", target, "--kind", "x")
+    assert code == 2 and "invalid choice" in err
+    code, out, err = run(capsys, "--db", db_url, "graph", "wire")
+    assert code == 2 and "GRAPH_COMMAND" in err
+
+
+def test_graph_as_a_process(tmp_path):
+    # The console entry point, end to end: import a file, then ask about its graph.
+    url = f"sqlite:///{tmp_path / 'proc.db'}"
+    path = write_tiny(tmp_path, "off")
+    command = [sys.executable, "-m", "hestore", "--db", url]
+    done = _run_process([*command, "import", str(path)], tmp_path)
+    assert done.returncode == 0, done.stderr
+    done = _run_process([*command, "graph", "sq", "path", "0", "4"], tmp_path)
+    assert (done.returncode, done.stdout, done.stderr) == (0, "path: 0 1 4\nlength: 2 edges\n", "")
+    done = _run_process([*command, "graph", "sq", "path", "0", "9"], tmp_path)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith("hestore: error: ") and done.stderr.count("\n") == 1
 
 
 # -- the progress bar ---------------------------------------------------------------

@@ -38,6 +38,7 @@ from hestore.bulk import ImportReport, MeshArrays, SkippedPolygon
 from hestore.handles import Edge, HalfEdge, Polygon, Vertex
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
+from hestore.summary import Stats
 from hestore.validation import Violation
 
 __version__ = "0.1.0"
@@ -47,6 +48,7 @@ __all__ = [
     "Store",
     "Mesh",
     "Counts",
+    "Stats",
     "Vertex",
     "HalfEdge",
     "Edge",

@@ -8,9 +8,12 @@ unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
 Commands: ``demo``, ``import FILE``, ``export NAME FILE``, ``list``,
-``info NAME``, ``check NAME``, ``db upgrade``, ``db current``.
+``info NAME`` (`hestore.Mesh.stats`), ``check NAME``, ``graph NAME
+components|path A B|degree-histogram|export FILE`` (networkx, through
+`hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
 
-Exit status: 0 success, 1 ``check`` found violations, 2 error.
+Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
+found no path, 2 error.
 
 ``import`` and ``export`` report progress through `ProgressBar`, on stderr:
 a redrawn bar on a terminal, and only a plain final line elsewhere, so that
@@ -24,7 +27,6 @@ whose schema is behind (that refusal is what tells users to run
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import sys
@@ -336,9 +338,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 def _info(mesh: hestore.Mesh) -> dict:
     """What ``info`` shows, as JSON-ready values; the text form is rendered from it.
 
-    Keys are the Python API's names (`hestore.Mesh` attributes, `hestore.Counts`
-    fields), so a new field is one more key here and one more label in
-    `_INFO_LABELS`.
+    The mesh's name, revision and policy, then every field of `Mesh.stats`
+    (`hestore.summary.Stats.as_dict`), in the order of `_INFO_LABELS`. Keys
+    are the Python API's names, so a new field of ``Stats`` is one more key
+    here without a change, and one more label in `_INFO_LABELS`.
     """
     info = {
         "name": mesh.name,
@@ -346,26 +349,66 @@ def _info(mesh: hestore.Mesh) -> dict:
         "allow_loops": mesh.allow_loops,
         "allow_multi_edges": mesh.allow_multi_edges,
     }
-    info.update(dataclasses.asdict(mesh.counts()))
-    return info
+    for key, value in mesh.stats().as_dict().items():
+        info.setdefault(key, _plain(value))
+    sizes = info.get("polygon_sizes")
+    if isinstance(sizes, dict):  # arity -> count, by arity
+        info["polygon_sizes"] = {int(k): sizes[k] for k in sorted(sizes, key=int)}
+    # The labelled keys in their order, then any the labels do not know yet.
+    order = {key: i for i, key in enumerate(_INFO_LABELS)}
+    return dict(sorted(info.items(), key=lambda kv: order.get(kv[0], len(order))))
 
 
-#: How ``info`` labels each key of `_info` in its text form (unlisted keys show as they are).
+def _plain(value: object) -> object:
+    """``value`` with numpy scalars (and containers of them) as Python ones, for JSON."""
+    if isinstance(value, dict):
+        return {_plain(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    item = getattr(value, "item", None)
+    if item is not None and not isinstance(value, (bool, int, float, str)):
+        try:
+            return item()
+        except (TypeError, ValueError):
+            return value
+    return value
+
+
+#: How ``info`` labels each key of `_info` in its text form (unlisted keys show as they are),
+#: in the order it shows them.
 _INFO_LABELS = {
     "name": "name",
     "revision": "revision",
-    "allow_loops": "self-loops",
-    "allow_multi_edges": "parallel edges",
+    "allow_loops": "self-loops allowed",
+    "allow_multi_edges": "parallel edges allowed",
     "vertices": "vertices",
-    "halfedges": "half-edges",
+    "isolated_vertices": "isolated vertices",
     "edges": "edges",
+    "loops": "self-loops",
+    "parallel_edges": "parallel edges",
+    "halfedges": "half-edges",
     "polygons": "polygons",
+    "polygon_sizes": "polygon sizes",
+    "boundary_edges": "boundary edges",
+    "wire_edges": "wire edges",
+    "boundary_loops": "boundary loops",
+    "components": "components",
+    "euler_characteristic": "Euler characteristic",
+    "genus": "genus",
+    "pinched_vertices": "pinched vertices",
+    "is_closed": "closed",
+    "is_manifold": "manifold",
 }
 
 
-def _info_value(value: object) -> str:
+def _info_value(key: str, value: object, info: dict) -> str:
     if isinstance(value, bool):
-        return "allowed" if value else "forbidden"
+        return "yes" if value else "no"
+    if key == "genus" and value is None:
+        # The genus is undefined where the surface is not one: say why.
+        why = [what for what, field in (("wire edges", "wire_edges"), ("pinched vertices", "pinched_vertices"))
+               if info.get(field)]
+        return f"- ({' and '.join(why)})" if why else "-"
     if value is None:
         return "-"
     if isinstance(value, dict):
@@ -382,7 +425,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     labels = {key: _INFO_LABELS.get(key, key) for key in info}
     width = max(len(label) for label in labels.values()) + 1
     for key, value in info.items():
-        print(f"{labels[key] + ':':<{width}}  {_info_value(value)}")
+        print(f"{labels[key] + ':':<{width}}  {_info_value(key, value, info)}")
     return 0
 
 
@@ -396,6 +439,162 @@ def _cmd_check(args: argparse.Namespace) -> int:
     for violation in violations:
         print(violation)
     return 1
+
+
+# -- graph ------------------------------------------------------------------------
+
+#: How many components ``graph NAME components`` lists, the largest first.
+_TOP_COMPONENTS = 10
+
+#: The graph file formats ``graph NAME export`` writes, by extension.
+_GRAPH_FORMATS = {".graphml": "GraphML", ".edgelist": "edge list"}
+
+#: The kinds of `hestore.Mesh.to_networkx`, the default first: `hestore.graphs.KINDS`,
+#: repeated so that building the parser does not import networkx.
+_GRAPH_KINDS = ("multigraph", "graph", "halfedge", "dual")
+
+
+def _count(n: int, singular: str, plural: str | None = None) -> str:
+    """``1 vertex``, ``2 vertices``."""
+    return f"{n} {singular if n == 1 else (plural or singular + 's')}"
+
+
+def _cmd_graph_components(args: argparse.Namespace) -> int:
+    # mesh.components() rather than networkx on to_networkx(): it reads two
+    # half-edge columns (origin, twin) and the vertex ids into numpy arrays and
+    # labels the components there, where the multigraph would build a Python
+    # node with its position per vertex and an edge with its half-edges and
+    # polygons per edge, only for a traversal in Python that ignores them.
+    with _open(args) as store:
+        components = store.mesh(args.name).components()
+    # (size, lowest vertex id), the largest first; equal sizes by lowest id.
+    sizes = sorted(((len(c), min(v.id for v in c)) for c in components), key=lambda s: (-s[0], s[1]))
+    vertices = sum(size for size, _ in sizes)
+    head = f"{_count(len(sizes), 'component')} of {_count(vertices, 'vertex', 'vertices')}"
+    print(head + (", the largest first:" if len(sizes) > 1 else ":" if sizes else ""))
+    for size, lowest in sizes[:_TOP_COMPONENTS]:
+        print(f"  {_count(size, 'vertex', 'vertices')} (lowest id {lowest})")
+    rest = sizes[_TOP_COMPONENTS:]
+    if rest:
+        print(f"  ... and {len(rest)} more, of {_count(rest[0][0], 'vertex', 'vertices')} or fewer each")
+    return 0
+
+
+def _cmd_graph_path(args: argparse.Namespace) -> int:
+    import networkx as nx
+
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        for i in (args.a, args.b):
+            mesh.vertex(i)  # an unknown id: ElementNotFoundError, one line, exit 2
+        graph = mesh.to_networkx("multigraph")
+    try:
+        path = nx.shortest_path(graph, args.a, args.b)
+    except nx.NetworkXNoPath:
+        print(
+            f"no path from vertex {args.a} to vertex {args.b} in {args.name!r}: "
+            "they are in different components"
+        )
+        return 1
+    print("path: " + " ".join(str(v) for v in path))
+    print(f"length: {_count(len(path) - 1, 'edge')}")
+    return 0
+
+
+def _cmd_graph_degree_histogram(args: argparse.Namespace) -> int:
+    import networkx as nx
+
+    with _open(args) as store:
+        graph = store.mesh(args.name).to_networkx("multigraph")
+    histogram = nx.degree_histogram(graph)  # index = degree; a self-loop adds 2
+    if not histogram:
+        print(f"mesh {args.name!r} has no vertices", file=sys.stderr)
+    for degree, count in enumerate(histogram):
+        if count:
+            print(f"{degree}: {count}")
+    return 0
+
+
+def _graphml_value(value: object) -> object:
+    """A GraphML-writable attribute value: scalars as they are, None dropped, the rest as JSON text."""
+    value = _plain(value)
+    if value is None:
+        return _DROP
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    return json.dumps(value)
+
+
+def _edgelist_value(value: object) -> object:
+    """An edge-list attribute value: a Python literal (`ast.literal_eval` reads it back)."""
+    return _plain(value)
+
+
+#: Returned by a converter for an attribute that is left out.
+_DROP = object()
+
+
+def _writable_copy(graph, convert: Callable[[object], object], *, key: str | None = None):
+    """A new, unfrozen graph of ``graph``'s type with every attribute value passed through ``convert``.
+
+    The views of `hestore.Mesh.to_networkx` are frozen and cached, so they are
+    never changed in place. With ``key``, a multigraph's edge keys are also
+    written as that edge attribute (an edge list has no place for keys).
+    """
+    import networkx as nx
+
+    def attrs(data: dict) -> dict:
+        out = {}
+        for name, value in data.items():
+            value = convert(value)
+            if value is not _DROP:
+                out[str(name)] = value
+        return out
+
+    multi, directed = graph.is_multigraph(), graph.is_directed()
+    classes = {
+        (False, False): nx.Graph,
+        (False, True): nx.DiGraph,
+        (True, False): nx.MultiGraph,
+        (True, True): nx.MultiDiGraph,
+    }
+    copy = classes[multi, directed]()
+    copy.graph.update(attrs(graph.graph))
+    copy.add_nodes_from((n, attrs(d)) for n, d in graph.nodes(data=True))
+    if multi:
+        copy.add_edges_from(
+            (u, v, k, ({key: _plain(k)} if key else {}) | attrs(d))
+            for u, v, k, d in graph.edges(keys=True, data=True)
+        )
+    else:
+        copy.add_edges_from((u, v, attrs(d)) for u, v, d in graph.edges(data=True))
+    return copy
+
+
+def _cmd_graph_export(args: argparse.Namespace) -> int:
+    suffix = Path(args.file).suffix.lower()
+    if suffix not in _GRAPH_FORMATS:
+        what = repr(suffix) if suffix else "(no extension)"
+        return _error(
+            f"{args.file}: unsupported graph file format {what}; "
+            "write .graphml (GraphML) or .edgelist (an edge list)"
+        )
+    import networkx as nx
+
+    with _open(args) as store:
+        graph = store.mesh(args.name).to_networkx(args.kind)
+    if suffix == ".graphml":
+        copy = _writable_copy(graph, _graphml_value)
+        nx.write_graphml(copy, args.file)
+    else:
+        copy = _writable_copy(graph, _edgelist_value, key="key")
+        nx.write_edgelist(copy, args.file, data=True)
+    size = os.path.getsize(args.file)
+    print(
+        f"wrote the {args.kind} view of {args.name!r} to {args.file} ({_GRAPH_FORMATS[suffix]}): "
+        f"{_count(copy.number_of_nodes(), 'node')}, {_count(copy.number_of_edges(), 'edge')}, {size} bytes"
+    )
+    return 0
 
 
 def _cmd_db_upgrade(args: argparse.Namespace) -> int:
@@ -533,7 +732,12 @@ def build_parser() -> argparse.ArgumentParser:
     listing.set_defaults(func=_cmd_list)
 
     info = commands.add_parser(
-        "info", help="a mesh's revision, policy and counts of vertices, half-edges, edges and polygons"
+        "info",
+        help="a mesh's revision, policy, counts and topology: boundaries, components, genus, ...",
+        description="Print a mesh's name, revision and policy, and every field of its "
+        "hestore.Mesh.stats(): counts (with self-loops, parallel edges and polygon sizes), "
+        "boundary and wire edges, boundary loops, components, Euler characteristic, genus, "
+        "pinched vertices, whether it is closed and manifold.",
     )
     info.add_argument("name", metavar="NAME", help="the mesh to describe")
     info.add_argument("--json", action="store_true", help="print a JSON object instead of text")
@@ -544,6 +748,61 @@ def build_parser() -> argparse.ArgumentParser:
     )
     check.add_argument("name", metavar="NAME", help="the mesh to check")
     check.set_defaults(func=_cmd_check)
+
+    graph = commands.add_parser(
+        "graph",
+        help="graph analytics on a mesh's connectivity: components, path, degree-histogram, export",
+        description="Graph analytics on a mesh's committed connectivity, through networkx "
+        "(hestore.Mesh.to_networkx). components, path and degree-histogram use the multigraph: "
+        "one node per vertex, isolated ones included, one edge per edge, self-loops and parallel "
+        "edges kept.",
+    )
+    graph.add_argument("name", metavar="NAME", help="the mesh")
+    graph_commands = graph.add_subparsers(dest="graph_command", metavar="GRAPH_COMMAND", required=True)
+    components = graph_commands.add_parser(
+        "components",
+        help=f"the number of connected components and the sizes of the {_TOP_COMPONENTS} largest",
+        description="Print the number of connected components of the vertex-edge graph (an "
+        f"isolated vertex is one of its own), then the {_TOP_COMPONENTS} largest, one a line: "
+        "its number of vertices and its lowest vertex id.",
+    )
+    components.set_defaults(func=_cmd_graph_components)
+    path = graph_commands.add_parser(
+        "path",
+        help="a shortest path (fewest edges) between vertices A and B",
+        description="Print a shortest path, in edges, from vertex A to vertex B: the vertex ids "
+        "along it and its length. Exit status 1 when there is none.",
+    )
+    path.add_argument("a", metavar="A", type=int, help="the id of the first vertex")
+    path.add_argument("b", metavar="B", type=int, help="the id of the last vertex")
+    path.set_defaults(func=_cmd_graph_path)
+    histogram = graph_commands.add_parser(
+        "degree-histogram",
+        help="how many vertices have each degree (a self-loop counts twice)",
+        description="Print 'degree: count' lines for every degree some vertex has, lowest first: "
+        "networkx.degree_histogram of the multigraph (a self-loop counts twice, each parallel "
+        "edge once).",
+    )
+    histogram.set_defaults(func=_cmd_graph_degree_histogram)
+    gexp = graph_commands.add_parser(
+        "export",
+        help="write a graph view to a GraphML (.graphml) or edge list (.edgelist) file",
+        description="Write one of the graph views of hestore.Mesh.to_networkx to FILE, replacing "
+        "it: GraphML for .graphml (nodes, edges with their keys, every attribute; None values "
+        "left out, tuples and lists written as JSON text), an edge list for .edgelist (a line "
+        "'u v {attributes}' per edge, the key as attribute 'key'; no isolated nodes, no node "
+        "attributes).",
+    )
+    gexp.add_argument("file", metavar="FILE", help="the file to write (.graphml or .edgelist)")
+    gexp.add_argument(
+        "--kind",
+        choices=_GRAPH_KINDS,
+        default="multigraph",
+        help="the view: multigraph (the default: vertices, one edge per edge), graph (parallel "
+        "edges merged), halfedge (directed, one edge per half-edge) or dual (polygons, joined "
+        "across their shared edges)",
+    )
+    gexp.set_defaults(func=_cmd_graph_export)
 
     db = commands.add_parser("db", help="database schema: upgrade, current")
     db_commands = db.add_subparsers(dest="db_command", metavar="DB_COMMAND", required=True)
@@ -577,7 +836,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        The exit status: 0 success, 1 ``check`` found violations, 2 error
+        The exit status: 0 success, 1 ``check`` found violations or ``graph … path``
+        found no path, 2 error
         (reported as one line on stderr, never a traceback).
 
     Examples
@@ -630,6 +890,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"the database driver {exc.name!r} for {_shown(url)} is not installed; "
             f"install it with: pip install '{_DRIVER_EXTRAS[exc.name]}'"
         )
+    except Exception as exc:
+        # networkx is imported by the graph commands only: look for it, never import it here.
+        nx = sys.modules.get("networkx")
+        if nx is not None and isinstance(exc, nx.NetworkXException):
+            return _error(f"networkx: {exc}")
+        raise
 
 
 if __name__ == "__main__":  # pragma: no cover - `python -m hestore` uses __main__.py

@@ -23,7 +23,7 @@ from typing import Callable, Iterator, Mapping, Sequence
 import numpy as np
 import sqlalchemy as sa
 
-__all__ = ["read_columns", "write_columns", "uses_copy"]
+__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy"]
 
 _FETCH_ROWS = 65536
 _WRITE_ROWS = 131072
@@ -43,7 +43,7 @@ def _is_float(column) -> bool:
 
 
 @contextmanager
-def _read_snapshot(connection: sa.Connection) -> Iterator[None]:
+def read_snapshot(connection: sa.Connection) -> Iterator[None]:
     """Make the statements run inside the block see one committed state.
 
     A connection already in a transaction is used as it is (its reads see its
@@ -51,6 +51,14 @@ def _read_snapshot(connection: sa.Connection) -> Iterator[None]:
     snapshot in WAL mode), an idle autocommit psycopg connection ``BEGIN
     ISOLATION LEVEL REPEATABLE READ READ ONLY``; both are rolled back after,
     leaving the connection as it was.
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> engine = sa.create_engine("sqlite://", isolation_level="AUTOCOMMIT")
+    >>> with engine.connect() as conn, read_snapshot(conn):
+    ...     conn.connection.dbapi_connection.in_transaction
+    True
     """
     dbapi = connection.connection.dbapi_connection
     begin = None
@@ -233,7 +241,7 @@ def read_columns(
         flat = _fetch_pg_copy(connection, mesh_id, requests)
     else:
         flat = []
-        with _read_snapshot(connection):
+        with read_snapshot(connection):
             for table, cols in requests:
                 flat.extend(_fetch_cursor(connection, table, cols, mesh_id))
     out = []

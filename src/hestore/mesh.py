@@ -26,6 +26,7 @@ from hestore.handles import Edge, HalfEdge, Polygon, Vertex, _Handle
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.store import Store
+    from hestore.summary import Stats
     from hestore.validation import Violation
 
 __all__ = ["Mesh", "Counts"]
@@ -403,6 +404,32 @@ class Mesh:
         iv = self._own(v, Vertex)
         with self._store._editing(self._id) as uow:
             kernel.remove_vertex(uow, iv)
+
+    # -- summaries and graph views ---------------------------------------------
+
+    def stats(self) -> "Stats":
+        """Counts and topological invariants of the mesh; see `hestore.summary.stats`."""
+        from hestore import summary
+
+        return summary.stats(self)
+
+    def boundary_loops(self) -> list[list[HalfEdge]]:
+        """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
+        from hestore import summary
+
+        return summary.boundary_loops(self)
+
+    def components(self) -> list[set[Vertex]]:
+        """Connected components of the vertex–edge graph; see `hestore.summary.components`."""
+        from hestore import summary
+
+        return summary.components(self)
+
+    def to_networkx(self, kind: str = "multigraph"):
+        """A frozen networkx graph of the committed state; see `hestore.graphs.to_networkx`."""
+        from hestore import graphs
+
+        return graphs.to_networkx(self, kind)
 
     # -- bulk export ----------------------------------------------------------
 

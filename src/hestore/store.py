@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from contextlib import contextmanager
 from typing import Any, Iterator
 
@@ -227,6 +228,10 @@ class Store:
         finally:
             self._conn.close()
             self._engine.dispose()
+            # Graph views cached for this store can be large: free them now, not at garbage collection.
+            graphs = sys.modules.get("hestore.graphs")
+            if graphs is not None:
+                graphs._cache.pop(self, None)
 
     def __enter__(self) -> "Store":
         return self
@@ -435,6 +440,23 @@ class Store:
         """The SQLAlchemy connection, after writing any pending edits."""
         self._cursor()
         yield self._conn
+
+    @contextmanager
+    def _committed(self) -> Iterator[sa.Connection]:
+        """A connection that sees committed data only.
+
+        Outside a block that is the store's own connection. Inside one, a
+        second connection of the same engine, which does not see the block's
+        edits — except for an in-memory SQLite database, which has only the
+        one connection: there the block's own state is what can be read.
+        """
+        self._check_open()
+        if self._depth == 0 or (self._sqlite and _is_memory(self.url)):
+            with self._read() as conn:
+                yield conn
+            return
+        with self._engine.connect() as conn:
+            yield conn
 
     # -- the mesh catalogue ------------------------------------------------
 

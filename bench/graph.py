@@ -1,0 +1,950 @@
+"""Benchmark: graph views and summaries of 1 M-polygon meshes (SPEC §3, §6, §9).
+
+    python bench/graph.py [--backends sqlite,postgresql] [--only grid,bunny,igea] [--n 710]
+
+Meshes (``--only``), each stored once per backend before anything is timed
+(``store.import_arrays`` / ``store.import_file``, untimed setup):
+
+grid    the triangulated N×N vertex grid (``--n``, default 710: 2·709² =
+        1,005,362 triangles, 1,507,333 edges);
+bunny   ``stanford-bunny-subdiv2.obj`` (1.1 M triangles, boundary,
+        unreferenced vertices);
+igea    ``igea-subdiv1.ply`` (1.07 M triangles, closed).
+
+The two files are read in place from ``$HESTORE_BENCH_MESHES``, else
+``../shared/meshes`` next to the repository (never copied).
+
+Figures, each on a SQLite file and on PostgreSQL, each one run in a fresh
+subprocess that reports its own peak RSS and CPU time:
+
+to_networkx("multigraph")  the first call on a fresh store (nothing cached).
+        Floor = fetch + build, measured in the same run:
+          fetch  ONE plain-driver query of the edge array (edge id, origin of
+                 its half-edge, origin of the twin: edges joined to
+                 halfedges twice) into numpy, plus the vertex query (id, x, y,
+                 z) for the node variants; SQLite ``fetchall`` + ``np.array``
+                 vs ``np.fromiter(cursor)``, PostgreSQL ``fetchall`` vs a
+                 binary ``COPY TO`` of ``array_agg`` columns; the fastest;
+          build  ``nx.MultiGraph().add_edges_from`` of ``(u, v, key)`` —
+                 as triples and as 4-tuples with an empty dict (the faster
+                 taken) — in three variants, each printed: the edges alone;
+                 **the same nodes with the same ``pos`` attribute, then the
+                 edges (the floor: what a user must build to get the same
+                 nodes and edges)**; and the same graph with hestore's edge
+                 attributes too (the dicts ``halfedges`` / ``polygons``).
+                 Each is timed with the garbage collector paused, as hestore
+                 builds; the floor variant also with it on (what plain code
+                 pays; the faster of the two is the floor).
+        Target (SPEC §9): ≤ 1.3× the floor.
+to_networkx("graph")  likewise; floor: ``nx.Graph().add_edges_from`` of the
+        unique vertex pairs (``np.unique`` in the floor), after the same
+        nodes with ``pos`` (hestore's "graph" has them too); variants as
+        above. No SPEC target: a ratio, no verdict.
+to_networkx again  a second call on the same store (the per-revision cache):
+        must be about 0 (≤ 10 ms applied) and return the same object.
+stats(), boundary_loops(), components(), check()  no library floor; SPEC's
+        target for stats() and check() is ≤ 10 s, set-based; it is applied to
+        boundary_loops() and components() too. As context for components():
+        ``nx.number_connected_components`` on the floor's "graph" (fetch +
+        build + count).
+
+Correctness gates (the exit status is non-zero only when one fails or a step
+crashes, never for a slow figure): both backends give the same edge array;
+every graph has exactly the floor's nodes, edges, keys, ``pos`` and
+attributes, and is frozen; the second call returns the same graph; stats()
+agrees with counts(), with len(boundary_loops()) and len(components()), and
+with networkx's component count; check() is empty.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import cProfile
+import gc
+import hashlib
+import io
+import os
+import platform
+import pstats
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from itertools import islice
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+import networkx as nx  # noqa: E402
+import numpy as np  # noqa: E402
+
+import hestore  # noqa: E402
+from _common import (  # noqa: E402
+    DEFAULT_PG_URL,
+    FILES,
+    MESHES,
+    PgRun,
+    Runner,
+    child_main,
+    cpu_seconds,
+    fmt_mib,
+    fmt_s,
+    grid_arrays,
+    maxrss,
+    mesh_label,
+    meshes_dir,
+    pg_connect,
+    pg_copy_columns,
+    pg_drop_schema,
+    pg_fresh_schema,
+    pg_problem,
+    print_machine,
+    print_table,
+    remove_sqlite,
+    settle,
+    sqlite_connect,
+    sqlite_url,
+)
+
+TARGET_RATIO = 1.3  # to_networkx("multigraph") ÷ floor
+TARGET_SECONDS = 10.0  # stats(), check() (and, applied here, boundary_loops(), components())
+TARGET_CACHE = 0.010  # a second to_networkx(): "about 0"
+CACHE_CALLS = 20  # repeated calls after the second one; their median is the cache figure
+KEEP: list = []  # a child's graphs: left to the process's exit (see `_common.child_main`)
+KINDS = ("multigraph", "graph")
+SUMMARIES = ("stats", "boundary_loops", "components", "check")
+#: Whether each kind's nodes carry ``pos`` (SPEC §6 names it for the multigraph; hestore's "graph" has it too).
+NODE_POS = {"multigraph": True, "graph": True}
+#: The floor variants of each kind (for "graph", "nodes" means the nodes with pos, as hestore's) ...
+FLOOR_VARIANTS = {"multigraph": ("edges", "nodes+pos", "same graph"), "graph": ("edges", "nodes", "same graph")}
+#: ... and the one the ratio and the verdict use.
+FLOOR_OF = {"multigraph": "nodes+pos", "graph": "nodes"}
+
+
+# ==========================================================================
+# The floor's queries
+
+# The edge array: edge id, origin of its half-edge, origin of that half-edge's twin.
+EDGE_COLS = ["e.id", "h0.origin", "h1.origin"]
+# The same join with the columns hestore's edge attributes need (NULL polygon -> -1).
+FULL_COLS = EDGE_COLS + ["h0.id", "h1.id", "coalesce(h0.polygon, -1)", "coalesce(h1.polygon, -1)"]
+EDGE_FROM = ("FROM edges e JOIN halfedges h0 ON h0.mesh_id = e.mesh_id AND h0.id = e.halfedge "
+             "JOIN halfedges h1 ON h1.mesh_id = h0.mesh_id AND h1.id = h0.twin WHERE e.mesh_id = {m}")
+VERTEX_COLS = ["id", "x", "y", "z"]
+VERTEX_FROM = "FROM vertices WHERE mesh_id = {m}"
+QUERIES = {  # name -> (columns, FROM ... WHERE, dtype)
+    "edges": (EDGE_COLS, EDGE_FROM, np.int64),
+    "vertices": (VERTEX_COLS, VERTEX_FROM, np.float64),
+    "edges+attrs": (FULL_COLS, EDGE_FROM, np.int64),
+}
+
+
+def fetch_fetchall(cur, cols, rest, dtype) -> np.ndarray:
+    cur.execute(f"SELECT {', '.join(cols)} {rest}")
+    return np.array(cur.fetchall(), dtype=dtype).reshape(-1, len(cols))
+
+
+def fetch_fromiter(cur, cols, rest, dtype) -> np.ndarray:
+    cur.execute(f"SELECT {', '.join(cols)} {rest}")
+    return np.fromiter(cur, dtype=np.dtype((dtype, (len(cols),))))
+
+
+def fetch_copy(cur, cols, rest, dtype) -> np.ndarray:
+    return np.column_stack(pg_copy_columns(cur, cols, rest, [dtype] * len(cols)))
+
+
+FETCHES = {
+    "sqlite": {"fetchall + np.array": fetch_fetchall, "np.fromiter(cursor)": fetch_fromiter},
+    "postgresql": {"fetchall + np.array": fetch_fetchall, "COPY TO of array_agg + np.frombuffer": fetch_copy},
+}
+
+
+# ==========================================================================
+# The floor's graphs (hestore's attribute conventions are in `edge_attrs`)
+
+
+@dataclass
+class Arrays:
+    """What the floor fetched, in the fetch's row order: edges (key, u, v, h0, h1, p0, p1), vertices (id, xyz)."""
+
+    key: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    h0: np.ndarray
+    h1: np.ndarray
+    p0: np.ndarray
+    p1: np.ndarray
+    vid: np.ndarray
+    xyz: np.ndarray
+
+    @classmethod
+    def load(cls, path: str) -> "Arrays":
+        with np.load(path) as z:
+            return cls(**{k: z[k] for k in z.files})
+
+    def save(self, path: str) -> None:
+        np.savez(path, **self.__dict__)
+
+    def digest(self) -> str:
+        """The same for the same edges and vertices in any row order.
+
+        Positions are compared as numbers: -0.0 counts as 0.0 (SQLite stores
+        -0.0 as 0.0; PostgreSQL keeps the sign).
+        """
+        h = hashlib.sha256()
+        o = np.argsort(self.key, kind="stable")
+        for a in (self.key, self.u, self.v, self.h0, self.h1, self.p0, self.p1):
+            h.update(np.ascontiguousarray(a[o]).tobytes())
+        o = np.argsort(self.vid, kind="stable")
+        h.update(np.ascontiguousarray(self.vid[o]).tobytes())
+        h.update(np.ascontiguousarray(self.xyz[o] + 0.0).tobytes())  # -0.0 + 0.0 == +0.0
+        return h.hexdigest()
+
+
+def node_pos(xyz: np.ndarray) -> list:
+    """The ``pos`` attribute values, one per vertex (a tuple, None where the vertex has no position)."""
+    pos = [tuple(p) for p in xyz.tolist()]
+    missing = np.flatnonzero(np.isnan(xyz).any(axis=1)).tolist()
+    for i in missing:
+        pos[i] = None
+    return pos
+
+
+def _poly(p: int):
+    return None if p < 0 else p
+
+
+def edge_attrs(kind: str, a: Arrays):
+    """hestore's edge attributes, for the "same graph" floors and the checks.
+
+    "multigraph": one dict per row of ``a``; "graph": ``(lo, hi, dicts)``, one
+    dict per unordered vertex pair.
+    """
+    if kind == "multigraph":
+        return [{"halfedges": (h0, h1), "polygons": (_poly(p0), _poly(p1))}
+                for h0, h1, p0, p1 in zip(a.h0.tolist(), a.h1.tolist(), a.p0.tolist(), a.p1.tolist())]
+    lo, hi = np.minimum(a.u, a.v), np.maximum(a.u, a.v)
+    order = np.lexsort((a.key, hi, lo))
+    lo, hi, key = lo[order], hi[order], a.key[order]
+    start = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
+    ids = iter(key.tolist())
+    attrs = [{"multiplicity": c, "edges": list(islice(ids, c))} for c in np.diff(np.r_[start, len(key)]).tolist()]
+    return lo[start], hi[start], attrs
+
+
+def add_nodes(g, a: Arrays, pos: bool) -> None:
+    if pos:
+        g.add_nodes_from(zip(a.vid.astype(np.int64).tolist(), ({"pos": p} for p in node_pos(a.xyz))))
+    else:
+        g.add_nodes_from(a.vid.astype(np.int64).tolist())
+
+
+def floor_multigraph(a: Arrays, variant: str, form: str):
+    """The multigraph floor's build: ``variant`` "edges" / "nodes+pos" / "same graph"; ``form`` "triples" / "4-tuples"."""
+    g = nx.MultiGraph()
+    if variant != "edges":
+        add_nodes(g, a, NODE_POS["multigraph"])
+    u, v, k = a.u.tolist(), a.v.tolist(), a.key.tolist()
+    if variant == "same graph":
+        g.add_edges_from(zip(u, v, k, edge_attrs("multigraph", a)))
+    elif form == "triples":
+        g.add_edges_from(zip(u, v, k))
+    else:
+        g.add_edges_from(zip(u, v, k, iter(dict, None)))
+    return g
+
+
+def unique_pairs(a: Arrays) -> tuple[np.ndarray, np.ndarray]:
+    """The unordered vertex pairs joined by edges, each once (one int64 key per pair for ``np.unique``)."""
+    lo, hi = np.minimum(a.u, a.v), np.maximum(a.u, a.v)
+    base = int(hi.max()) + 1 if len(hi) else 1
+    key = np.unique(lo * base + hi)
+    return key // base, key % base
+
+
+def floor_graph(a: Arrays, variant: str):
+    """The simple-graph floor's build: ``variant`` "edges" / "nodes" / "same graph"."""
+    g = nx.Graph()
+    if variant != "edges":
+        add_nodes(g, a, NODE_POS["graph"])
+    if variant == "same graph":
+        lo, hi, attrs = edge_attrs("graph", a)
+        g.add_edges_from(zip(lo.tolist(), hi.tolist(), attrs))
+    else:
+        lo, hi = unique_pairs(a)
+        g.add_edges_from(zip(lo.tolist(), hi.tolist()))
+    return g
+
+
+# ==========================================================================
+# Databases and the untimed setup
+
+
+def _store_url(spec: dict) -> str:
+    return sqlite_url(spec["path"]) if spec["backend"] == "sqlite" else spec["url"]
+
+
+def _plain(spec: dict):
+    """A plain-driver connection and cursor on the run's database, in one read snapshot."""
+    if spec["backend"] == "sqlite":
+        con = sqlite_connect(spec["path"])
+        cur = con.cursor()
+        return con, cur, "BEGIN"
+    con = pg_connect(spec["url"], autocommit=True)
+    return con, con.cursor(), "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
+
+
+def _mesh_id(cur, name: str, backend: str) -> int:
+    cur.execute(f"SELECT id FROM meshes WHERE name = {'?' if backend == 'sqlite' else '%s'}", (name,))
+    return cur.fetchone()[0]
+
+
+def job_setup(spec: dict) -> dict:
+    """Store the mesh (untimed setup); on PostgreSQL then VACUUM (ANALYZE), as autovacuum soon would."""
+    t0 = time.perf_counter()
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        if spec["mesh"] == "grid":
+            positions, faces = grid_arrays(spec["n"])
+            report = store.import_arrays("grid", positions, faces)
+        else:
+            report = store.import_file(os.path.join(spec["dir"], FILES[spec["mesh"]]), spec["mesh"])
+        counts = report.mesh.counts()
+    seconds = time.perf_counter() - t0
+    if spec["backend"] == "postgresql":
+        with pg_connect(spec["url"], autocommit=True) as conn:
+            for table in ("meshes", "vertices", "halfedges", "edges", "polygons"):
+                conn.execute(f"VACUUM (ANALYZE) {table}")
+    return {"seconds": seconds, "skipped": len(report.skipped),
+            "counts": [counts.vertices, counts.halfedges, counts.edges, counts.polygons]}
+
+
+# ==========================================================================
+# Child jobs: floors
+
+
+def job_fetch(spec: dict) -> dict:
+    """Every fetch variant of the three queries, each once, in its own read snapshot; saves the arrays."""
+    con, cur, begin = _plain(spec)
+    mesh_id = _mesh_id(cur, spec["mesh"], spec["backend"])
+    times: dict = {}
+    out: dict = {}
+    for qname, (cols, rest, dtype) in QUERIES.items():
+        times[qname] = {}
+        for vname, fn in FETCHES[spec["backend"]].items():
+            settle(spec)
+            t0 = time.perf_counter()
+            cur.execute(begin)
+            arr = fn(cur, cols, rest.format(m=int(mesh_id)), dtype)
+            cur.execute("ROLLBACK")
+            times[qname][vname] = time.perf_counter() - t0
+            arr = arr[np.argsort(arr[:, 0], kind="stable")]  # the join's row order is the planner's choice
+            if qname in out:
+                assert np.array_equal(arr, out[qname]), f"{vname} fetched other {qname} rows"
+            out[qname] = arr
+    con.close()
+    e, v = out["edges+attrs"], out["vertices"]
+    assert np.array_equal(e[:, :3], out["edges"]), "the two edge queries disagree"
+    a = Arrays(*(e[:, j].copy() for j in range(7)), v[:, 0].astype(np.int64), v[:, 1:].copy())
+    if spec.get("save"):
+        a.save(spec["save"])
+    return {"times": times, "digest": a.digest(), "edges": len(a.key), "vertices": len(a.vid),
+            "free_halfedges": int(np.count_nonzero(a.p0 < 0) + np.count_nonzero(a.p1 < 0)),
+            "negative_zeros": int(np.count_nonzero((a.xyz == 0) & np.signbit(a.xyz)))}
+
+
+def _timed_build(spec: dict, fn, collector: bool) -> tuple[float, float, object]:
+    """Time ``fn()`` with the cyclic garbage collector on or paused (hestore pauses it while it builds)."""
+    gc.collect()
+    settle(spec)
+    c0 = cpu_seconds()
+    t0 = time.perf_counter()
+    if not collector:
+        gc.disable()
+    try:
+        g = fn()
+    finally:
+        gc.enable()
+    return time.perf_counter() - t0, cpu_seconds() - c0, g
+
+
+def job_build(spec: dict) -> dict:
+    """One build variant of one kind's floor, on the saved arrays (loading them is not timed).
+
+    Every variant is timed with the collector paused, as hestore builds; the
+    multigraph's floor variant also with it on (what plain code pays). For the
+    multigraph's "edges" variant, ``(u, v, key)`` triples and ``(u, v, key,
+    {})`` 4-tuples are both timed; the faster form is used by the others.
+    """
+    a = Arrays.load(spec["arrays"])
+    kind, variant = spec["kind"], spec["variant"]
+    runs: dict = {}  # label -> (seconds, cpu)
+    if kind == "multigraph":
+        forms = ("triples", "4-tuples") if variant == "edges" else (spec.get("form") or "4-tuples",)
+        if variant == "same graph":
+            forms = ("attribute dicts",)
+        for form in forms:
+            g = None
+            t, c, g = _timed_build(spec, lambda: floor_multigraph(a, variant, form), False)
+            runs[f"{form}, collector paused"] = (t, c)
+        if variant == FLOOR_OF[kind]:
+            g = None
+            t, c, g = _timed_build(spec, lambda: floor_multigraph(a, variant, forms[0]), True)
+            runs[f"{forms[0]}, collector on"] = (t, c)
+        best_form = min((k for k in runs if k.endswith("paused")), key=lambda k: runs[k][0]).split(",")[0]
+    else:
+        g = None
+        t, c, g = _timed_build(spec, lambda: floor_graph(a, variant), False)
+        runs["collector paused"] = (t, c)
+        best_form = None
+    KEEP.append(g)
+    best = min(runs, key=lambda k: runs[k][0])
+    out = {"runs": {k: v[0] for k, v in runs.items()}, "best": best, "seconds": runs[best][0], "cpu": runs[best][1],
+           "form": best_form, "rss": maxrss(), "nodes": g.number_of_nodes(), "graph_edges": g.number_of_edges()}
+    if kind == "graph" and variant == FLOOR_OF[kind]:  # context for components(): networkx's own count
+        t0 = time.perf_counter()
+        out["ncc"] = nx.number_connected_components(g)
+        out["ncc_seconds"] = time.perf_counter() - t0
+    return out
+
+
+# ==========================================================================
+# Child jobs: hestore
+
+
+def _profiled(spec: dict, fn):
+    """Run ``fn()`` timed (and under cProfile when ``spec["profile"]``): (result, seconds, cpu, profile text)."""
+    profiler = cProfile.Profile() if spec.get("profile") else None
+    c0 = cpu_seconds()
+    t0 = time.perf_counter()
+    if profiler:
+        profiler.enable()
+    result = fn()
+    if profiler:
+        profiler.disable()
+    seconds = time.perf_counter() - t0
+    cpu = cpu_seconds() - c0
+    text = dominant = None
+    if profiler:
+        raw = pstats.Stats(profiler)
+        mine = sorted(((row[3], f"{func} ({os.path.basename(file)}:{line})") for (file, line, func), row in raw.stats.items()
+                       if f"{os.sep}hestore{os.sep}" in file), reverse=True)
+        buf = io.StringIO()
+        stats = pstats.Stats(profiler, stream=buf).strip_dirs()
+        stats.sort_stats("tottime").print_stats(spec.get("profile_lines", 20))
+        stats.sort_stats("cumulative").print_stats(spec.get("profile_lines", 20))
+        text = buf.getvalue()
+        (file, line, func), row = max(stats.stats.items(), key=lambda kv: kv[1][2])
+        dominant = (f"{func} ({file}:{line}): {row[2]:.2f} s of its own time, {row[3]:.2f} s with callees; "
+                    "hestore's functions by time with callees: " + ", ".join(f"{name} {t:.2f} s" for t, name in mine[:5]))
+    return result, seconds, cpu, text, dominant
+
+
+def verify_graph(kind: str, g, a: Arrays) -> list[str]:
+    """Differences between hestore's graph and the floor's arrays (empty when the same).
+
+    One pass over the graph's edges into numpy columns, compared with the
+    arrays sorted the same way: nodes, ``pos``, keys, end points and every
+    edge attribute.
+    """
+    bad = []
+    if not nx.is_frozen(g):
+        bad.append("not frozen")
+    if g.graph.get("kind") != kind:
+        bad.append(f"G.graph = {g.graph!r}")
+    want_type = nx.MultiGraph if kind == "multigraph" else nx.Graph
+    if type(g) is not want_type:
+        bad.append(f"a {type(g).__name__}, not a {want_type.__name__}")
+        return bad
+    vid = a.vid.astype(np.int64)
+    nodes = np.fromiter(g.nodes, dtype=np.int64, count=g.number_of_nodes())
+    if not np.array_equal(np.sort(nodes), np.sort(vid)):
+        bad.append(f"nodes: {len(nodes):,} vs {len(vid):,} vertices, or other ids")
+        return bad
+    if NODE_POS[kind]:
+        gn = g.nodes
+        if any(gn[i].get("pos") != p for i, p in zip(vid.tolist(), node_pos(a.xyz))):
+            bad.append("node pos")
+    elif any(d for _, d in g.nodes(data=True)):
+        bad.append("node attributes the benchmark does not expect: update NODE_POS")
+    lo, hi = np.minimum(a.u, a.v), np.maximum(a.u, a.v)
+    if kind == "multigraph":
+        def row(u, v, k, d):
+            (h0, h1), (p0, p1) = d["halfedges"], d["polygons"]
+            return (k, min(u, v), max(u, v), h0, h1, -1 if p0 is None else p0, -1 if p1 is None else p1, len(d))
+
+        got = np.array([row(*e) for e in g.edges(keys=True, data=True)], dtype=np.int64).reshape(-1, 8)
+        got = got[np.argsort(got[:, 0], kind="stable")]
+        o = np.argsort(a.key, kind="stable")
+        want = np.column_stack([a.key[o], lo[o], hi[o], a.h0[o], a.h1[o], a.p0[o], a.p1[o], np.full(len(o), 2)])
+        if got.shape != want.shape:
+            bad.append(f"{len(got):,} edges, {len(want):,} expected")
+        else:
+            for j, name in enumerate(("keys", "end points", "end points", "halfedges", "halfedges", "polygons",
+                                      "polygons", "attribute names")):
+                if not np.array_equal(got[:, j], want[:, j]):
+                    bad.append(f"edge {name}")
+                    break
+    else:
+        rows, flat = [], []
+        for u, v, d in g.edges(data=True):
+            rows.append((min(u, v), max(u, v), d["multiplicity"], len(d["edges"]), len(d)))
+            flat += d["edges"]
+        got = np.array(rows, dtype=np.int64).reshape(-1, 5)
+        ids = np.array(flat, dtype=np.int64)
+        start = np.r_[0, np.cumsum(got[:, 3])[:-1]]
+        o = np.lexsort((got[:, 1], got[:, 0]))
+        got, start = got[o], start[o]
+        ids = ids[np.repeat(start - np.r_[0, np.cumsum(got[:, 3])[:-1]], got[:, 3]) + np.arange(len(ids))]
+        order = np.lexsort((a.key, hi, lo))
+        slo, shi, skey = lo[order], hi[order], a.key[order]
+        first = np.r_[True, (slo[1:] != slo[:-1]) | (shi[1:] != shi[:-1])]
+        mult = np.diff(np.r_[np.flatnonzero(first), len(skey)])
+        if len(got) != len(mult):
+            bad.append(f"{len(got):,} edges, {len(mult):,} vertex pairs")
+        elif not (np.array_equal(got[:, 0], slo[first]) and np.array_equal(got[:, 1], shi[first])):
+            bad.append("end points")
+        elif not (np.array_equal(got[:, 2], mult) and np.array_equal(got[:, 3], mult)):
+            bad.append("multiplicity")
+        elif not np.array_equal(ids, skey):
+            bad.append("edges (the ids, ascending)")
+        elif not (got[:, 4] == 2).all():
+            bad.append("attribute names")
+    return bad
+
+
+def job_to_networkx(spec: dict) -> dict:
+    kind = spec["kind"]
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        settle(spec)
+        rss0 = maxrss()
+        g, seconds, cpu, text, dominant = _profiled(spec, lambda: mesh.to_networkx(kind))
+        rss = maxrss()
+        # The cache: the second call, then CACHE_CALLS more (their median is the figure).
+        calls, same_object = [], True
+        for _ in range(1 + CACHE_CALLS):
+            t0 = time.perf_counter()
+            again = mesh.to_networkx(kind)
+            calls.append(time.perf_counter() - t0)
+            same_object &= again is g
+        del again
+        out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "second_call": calls[0],
+               "cached": float(np.median(calls[1:])), "cached_max": max(calls[1:]), "same_object": same_object,
+               "profile": text, "dominant": dominant, "nodes": g.number_of_nodes(), "graph_edges": g.number_of_edges()}
+    if not spec.get("profile"):
+        out["mismatch"] = verify_graph(kind, g, Arrays.load(spec["arrays"]))
+    KEEP.extend((store, g))  # freed by the process's exit, not timed, not waited for
+    return out
+
+
+def _summary_result(what: str, result) -> dict:
+    if what == "stats":
+        d = dict(result.__dict__)
+        d["polygon_sizes"] = {str(k): v for k, v in d["polygon_sizes"].items()}
+        return {"stats": d}
+    if what == "boundary_loops":
+        return {"count": len(result), "halfedges": sum(len(x) for x in result)}
+    if what == "components":
+        return {"count": len(result), "vertices": sum(len(x) for x in result), "largest": max(map(len, result), default=0)}
+    return {"violations": len(result), "examples": [str(v) for v in result[:5]]}
+
+
+def job_summary(spec: dict) -> dict:
+    what = spec["what"]
+    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        settle(spec)
+        rss0 = maxrss()
+        result, seconds, cpu, text, dominant = _profiled(spec, getattr(mesh, what))
+        rss = maxrss()
+        out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "profile": text, "dominant": dominant}
+        out.update(_summary_result(what, result))
+    return out
+
+
+JOBS = {"setup": job_setup, "fetch": job_fetch, "build": job_build, "to_networkx": job_to_networkx,
+        "summary": job_summary}
+
+
+# ==========================================================================
+# The parent
+
+
+
+@dataclass
+class Figure:
+    backend: str
+    mesh: str
+    name: str
+    seconds: float | None
+    floor: float | None
+    floor_parts: str
+    target: str
+    rss: int | None
+    verdict: str
+    cpu: float | None = None
+
+    @property
+    def ratio(self) -> float | None:
+        if self.seconds is None or not self.floor:
+            return None
+        return self.seconds / self.floor
+
+
+def fetch_best(fetch: dict, query: str) -> tuple[float, str]:
+    t = fetch["times"][query]
+    best = min(t, key=t.get)
+    return t[best], best
+
+
+def floor_of(kind: str, variant: str, fetch: dict | None, build: dict | None) -> tuple[float, str] | None:
+    """fetch + build of one floor variant: (seconds, its parts)."""
+    if not fetch or not build:
+        return None
+    queries = ["edges+attrs" if variant == "same graph" else "edges"]
+    if variant != "edges":
+        queries.append("vertices")
+    total, parts = 0.0, []
+    for q in queries:
+        t, how = fetch_best(fetch, q)
+        total += t
+        parts.append(f"fetch {q} {t:.2f} ({how})")
+    what = {"edges": "edges only", "nodes+pos": "nodes with pos + edges", "nodes": "nodes with pos + unique pairs",
+            "same graph": "the same graph, attributes included"}[variant]
+    parts.append(f"build {build['seconds']:.2f} ({what}; {build['best']})")
+    return total + build["seconds"], " + ".join(parts)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql (default both)")
+    ap.add_argument("--only", default=",".join(MESHES), help="meshes to run: grid, bunny, igea (default all)")
+    ap.add_argument("--n", type=int, default=710, help="grid vertices per side (default 710: 1,005,362 triangles)")
+    ap.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
+                    help="PostgreSQL server to use; a database is created there for the run and dropped at the end")
+    ap.add_argument("--workdir", help="where SQLite files and arrays go (default: a temporary folder, removed at the end)")
+    ap.add_argument("--meshes-dir", default=meshes_dir(),
+                    help="folder of the shared mesh files (default $HESTORE_BENCH_MESHES, else ../shared/meshes)")
+    ap.add_argument("--profile", choices=("over", "all", "off"), default="over",
+                    help="rerun a figure under cProfile when it is over its target (default), always, or never")
+    ap.add_argument("--timeout", type=float, default=1800, help="seconds allowed per step (default 1800)")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        return child_main(JOBS, args.child)
+
+    only = [m.strip() for m in args.only.split(",") if m.strip()]
+    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
+    for m in only:
+        if m not in MESHES:
+            ap.error(f"unknown mesh {m!r} (choose from {', '.join(MESHES)})")
+    for b in backends:
+        if b not in FETCHES:
+            ap.error(f"unknown backend {b!r}")
+    if args.n < 2:
+        ap.error("--n must be at least 2")
+
+    skipped: list[str] = []
+    for m in list(only):
+        if m in FILES and not os.path.exists(os.path.join(args.meshes_dir, FILES[m])):
+            skipped.append(f"{m}: {os.path.join(args.meshes_dir, FILES[m])} not found")
+            only.remove(m)
+
+    own_workdir = args.workdir is None
+    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_graph_")
+    os.makedirs(workdir, exist_ok=True)
+    runner = Runner(__file__, workdir, args.timeout)
+    base = {"n": args.n, "dir": args.meshes_dir}
+    load_start = os.getloadavg()
+    t_start = time.perf_counter()
+
+    setups: dict = {}  # (backend, mesh) -> result
+    fetches: dict = {}  # (backend, mesh) -> result
+    builds: dict = {}  # (mesh, kind, variant) -> result
+    results: dict = {}  # (backend, mesh, figure) -> result
+    profiles: list[tuple[str, dict]] = []
+    arrays: dict = {}  # mesh -> path of the saved floor arrays
+    pg_version = None
+    try:
+        for bname in backends:
+            pg = None
+            if bname == "postgresql":
+                problem = pg_problem(args.pg_url)
+                if problem:
+                    skipped.append(f"postgresql: not reachable at {args.pg_url}: {problem}")
+                    continue
+                pg = PgRun(args.pg_url)
+                pg_version = pg.version()
+            try:
+                for m in only:
+                    spec = dict(base, backend=bname, mesh=m)
+                    if pg:
+                        spec["db_url"] = pg.url
+                        spec["url"] = pg_fresh_schema(pg.url, f"graph_{m}")
+                    else:
+                        spec["path"] = os.path.join(workdir, f"graph-{m}.db")
+                        remove_sqlite(spec["path"])
+                    setups[(bname, m)] = setup = runner.run(job="setup", **spec)
+                    if setup is None:
+                        continue
+                    first = m not in arrays
+                    if first:
+                        arrays[m] = os.path.join(workdir, f"arrays-{m}.npz")
+                    fetches[(bname, m)] = runner.run(job="fetch", save=arrays[m] if first else None, **spec)
+                    if fetches[(bname, m)] is None and first:
+                        del arrays[m]
+                        continue
+                    spec["arrays"] = arrays[m]
+                    for kind in KINDS:
+                        if first:  # the builds do not depend on the backend: once per mesh
+                            form = None
+                            for variant in FLOOR_VARIANTS[kind]:
+                                r = runner.run(job="build", kind=kind, variant=variant, form=form,
+                                               **dict(spec, backend=None))
+                                builds[(m, kind, variant)] = r
+                                if r and variant == "edges" and kind == "multigraph":
+                                    form = r["form"]
+                        results[(bname, m, kind)] = runner.run(job="to_networkx", kind=kind, **spec)
+                    for what in SUMMARIES:
+                        results[(bname, m, what)] = runner.run(job="summary", what=what, **spec)
+                    # Profiles of whatever is over its target.
+                    for key in [*KINDS, *SUMMARIES]:
+                        r = results.get((bname, m, key))
+                        if not r:
+                            continue
+                        if key in KINDS:
+                            fl = floor_of(key, FLOOR_OF[key], fetches.get((bname, m)), builds.get((m, key, FLOOR_OF[key])))
+                            over = key == "multigraph" and fl is not None and r["seconds"] > TARGET_RATIO * fl[0]
+                        else:
+                            over = r["seconds"] > TARGET_SECONDS
+                        if args.profile == "all" or (args.profile == "over" and over):
+                            job = "to_networkx" if key in KINDS else "summary"
+                            extra = {"kind": key} if key in KINDS else {"what": key}
+                            p = runner.run(job=job, profile=True, **extra, **spec)
+                            if p:
+                                profiles.append((f"{bname} {mesh_label(m, args.n)}: {figure_name(key)} under cProfile "
+                                                 f"({p['seconds']:.2f} s with the profiler on, {r['seconds']:.2f} s without)", p))
+                    if pg:
+                        pg_drop_schema(pg.url, f"graph_{m}")
+                    else:
+                        remove_sqlite(spec["path"])
+            finally:
+                if pg:
+                    pg.cleanup()
+    finally:
+        if own_workdir:
+            shutil.rmtree(workdir, ignore_errors=True)
+        else:
+            for name in os.listdir(workdir):
+                if name.startswith(("graph-", "arrays-", "result-")):
+                    with contextlib.suppress(OSError):
+                        os.remove(os.path.join(workdir, name))
+
+    problems = report(args, only, backends, setups, fetches, builds, results, profiles, skipped, runner.errors,
+                      pg_version, load_start, time.perf_counter() - t_start)
+    return 1 if problems else 0
+
+
+def figure_name(key: str) -> str:
+    return f'to_networkx("{key}")' if key in KINDS else f"{key}()"
+
+
+def report(args, only, backends, setups, fetches, builds, results, profiles, skipped, errors, pg_version,
+           load_start, elapsed) -> list[str]:
+    problems = list(errors)
+    figures: list[Figure] = []
+    notes: list[str] = []
+    variant_rows: list[list[str]] = []
+    digests: dict = {}
+    zeros: dict = {}
+    for bname in backends:
+        for m in only:
+            setup = setups.get((bname, m))
+            if not setup:
+                continue
+            label = mesh_label(m, args.n)
+            V, H, E, P = setup["counts"]
+            notes.append(f"{bname} {label}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
+                         f"V/H/E/P {V:,}/{H:,}/{E:,}/{P:,}" + (f", {setup['skipped']} polygons skipped" if setup["skipped"] else ""))
+            fetch = fetches.get((bname, m))
+            if fetch:
+                digests.setdefault(m, {})[bname] = fetch["digest"]
+                zeros.setdefault(m, {})[bname] = fetch["negative_zeros"]
+                if fetch["edges"] != E or fetch["vertices"] != V:
+                    problems.append(f"{bname} {label}: the floor fetched {fetch['edges']:,} edges / {fetch['vertices']:,} "
+                                    f"vertices, counts() says {E:,} / {V:,}")
+            # -- the graph views
+            for kind in KINDS:
+                r = results.get((bname, m, kind))
+                if not r:
+                    continue
+                fl = floor_of(kind, FLOOR_OF[kind], fetch, builds.get((m, kind, FLOOR_OF[kind])))
+                verdict, target = "—", "— (none in SPEC)"
+                if kind == "multigraph":
+                    target = "≤ 1.3× floor"
+                    if fl:
+                        verdict = "ok" if r["seconds"] <= TARGET_RATIO * fl[0] else "over"
+                figures.append(Figure(bname, m, f'to_networkx("{kind}") {label}', r["seconds"], fl[0] if fl else None,
+                                      fl[1] if fl else "missing", target, r["rss"], verdict, r["cpu"]))
+                figures.append(Figure(bname, m, f'to_networkx("{kind}") again (cache) {label}', r["cached"], None, "—",
+                                      "≈ 0 (≤ 10 ms), same object", None,
+                                      "ok" if r["cached"] <= TARGET_CACHE and r["same_object"] else "over"))
+                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") cached: the second call {r['second_call'] * 1e3:.2f} ms; "
+                             f"{CACHE_CALLS} more: median {r['cached'] * 1e3:.2f} ms (the figure), slowest {r['cached_max'] * 1e3:.2f} ms")
+                if not r["same_object"]:
+                    problems.append(f"{bname} {label}: a second to_networkx(\"{kind}\") returned another object")
+                if r.get("mismatch"):
+                    problems.append(f"{bname} {label}: to_networkx(\"{kind}\") differs from the floor's graph in "
+                                    f"{'; '.join(r['mismatch'])}")
+                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") {r['nodes']:,} nodes, {r['graph_edges']:,} edges; "
+                             f"RSS {fmt_mib(r['rss_before'])} before the call, {fmt_mib(r['rss'])} after")
+                for variant in FLOOR_VARIANTS[kind]:
+                    b = builds.get((m, kind, variant))
+                    f = floor_of(kind, variant, fetch, b)
+                    if not f:
+                        continue
+                    runs = ", ".join(f"{k} {v:.2f} s" for k, v in b["runs"].items())
+                    variant_rows.append([bname, label, kind, variant + (" ← floor" if variant == FLOOR_OF[kind] else ""),
+                                         fmt_s(f[0]), f"build {runs}", fmt_mib(b["rss"]), f"{r['seconds'] / f[0]:.2f}×"])
+            # -- the summaries
+            ctx = builds.get((m, "graph", "nodes"))
+            for what in SUMMARIES:
+                r = results.get((bname, m, what))
+                if not r:
+                    continue
+                floor, parts = None, "— (no library floor)"
+                if what == "components" and ctx and fetch and "ncc" in ctx:
+                    fe, fv = fetch_best(fetch, "edges")[0], fetch_best(fetch, "vertices")[0]
+                    floor = fe + fv + ctx["seconds"] + ctx["ncc_seconds"]
+                    parts = (f"context: fetch {fe + fv:.2f} + nx.Graph {ctx['seconds']:.2f} + "
+                             f"number_connected_components {ctx['ncc_seconds']:.2f}")
+                applied = "" if what in ("stats", "check") else " (applied)"
+                figures.append(Figure(bname, m, f"{what}() {label}", r["seconds"], floor, parts, f"≤ 10 s{applied}",
+                                      r["rss"], "ok" if r["seconds"] <= TARGET_SECONDS else "over", r["cpu"]))
+            problems += summary_problems(bname, m, label, args.n, setup, fetch, ctx,
+                                         {w: results.get((bname, m, w)) for w in SUMMARIES}, notes)
+    for m, d in digests.items():
+        if len(set(d.values())) > 1:
+            problems.append(f"{mesh_label(m, args.n)}: the backends store different edge arrays or positions")
+        elif len(d) > 1:
+            notes.append(f"{mesh_label(m, args.n)}: both backends store the same edges, half-edges, polygons and positions")
+        if len(set(zeros[m].values())) > 1:
+            notes.append(f"{mesh_label(m, args.n)}: -0.0 coordinates stored: "
+                         + ", ".join(f"{b} {z}" for b, z in zeros[m].items())
+                         + " (SQLite stores -0.0 as 0.0; compared as numbers they are equal)")
+
+    # -- the figures
+    print()
+    print(f"hestore {hestore.__version__} graph views and summaries benchmark — Python {platform.python_version()}, "
+          f"networkx {nx.__version__}, numpy {np.__version__}; every figure one run in a fresh process")
+    print()
+    rows = [[f.backend, f.name, fmt_s(f.seconds) if f.seconds is None or f.seconds >= 0.1 else f"{f.seconds * 1e3:.2f} ms",
+             fmt_s(f.cpu), fmt_s(f.floor), f"{f.ratio:.2f}×" if f.ratio else "—", f.target, fmt_mib(f.rss), f.verdict]
+            for f in figures]
+    print_table(["backend", "figure", "time", "its CPU", "floor", "÷floor", "target", "peak RSS", "verdict"], rows,
+                "llrrrrlrl")
+    print("(time: wall clock; its CPU: user + system time of the measuring process alone, without the database")
+    print(" server's, a hint of how much other load on the machine slowed the wall clock down)")
+    print()
+    print("Floor parts (seconds):")
+    print_table(["backend", "figure", "floor = "], [[f.backend, f.name, f.floor_parts] for f in figures if f.floor], "lll")
+
+    print()
+    print("Graph floors, every variant (fetch of this backend + build, the build once per mesh in its own process;")
+    print("the ratio is hestore's first to_networkx call ÷ that variant):")
+    print_table(["backend", "mesh", "kind", "variant", "floor", "its build", "build's peak RSS", "hestore ÷"],
+                variant_rows, "lllllllr")
+    print()
+    print("Fetch variants (one plain-driver query each, in its own read snapshot, one run each; the fastest is used):")
+    rows = []
+    for (bname, m), fetch in fetches.items():
+        if not fetch:
+            continue
+        for q, t in fetch["times"].items():
+            best = min(t, key=t.get)
+            for name, s in t.items():
+                rows.append([bname, mesh_label(m, args.n), q, name, fmt_s(s), "← used" if name == best else ""])
+    print_table(["backend", "mesh", "query", "variant", "time", ""], rows, "llllrl")
+
+    print()
+    print("Correctness and notes:")
+    for n in notes:
+        print(f"  {n}")
+    print("  The floors add the same nodes with the same `pos` attribute as hestore's graphs (an (x, y, z) tuple per")
+    print("  vertex), then the (u, v, key) edges (\"graph\": the unique pairs); the edges-only and same-graph")
+    print("  (hestore's edge attributes too) variants are printed above. Builds are timed with the garbage collector")
+    print("  paused, as hestore builds (the multigraph floor also with it on). Peak RSS is the child process's own")
+    print("  ru_maxrss (the PostgreSQL server is not included); it holds the whole graph, which networkx keeps as dicts.")
+    for s in skipped:
+        print(f"  SKIPPED {s}")
+    for p in problems:
+        print(f"  PROBLEM {p}")
+
+    for title, p in profiles:
+        print()
+        print(title)
+        print(f"dominant (most own time): {p['dominant']}")
+        print(p["profile"].rstrip())
+
+    # -- markdown
+    print()
+    print("| figure | backend | time | floor (its parts) | ratio | target | peak RSS | verdict |")
+    print("|---|---|---:|---|---:|---|---:|---|")
+    for f in figures:
+        t = fmt_s(f.seconds) if f.seconds is None or f.seconds >= 0.1 else f"{f.seconds * 1e3:.2f} ms"
+        floor = f"{fmt_s(f.floor)} = {f.floor_parts}" if f.floor else f.floor_parts
+        print(f"| {f.name} | {f.backend} | {t} | {floor} | {f'{f.ratio:.2f}×' if f.ratio else '—'} | {f.target} | "
+              f"{fmt_mib(f.rss)} | {f.verdict} |")
+
+    print_machine(pg_version, load_start, args.meshes_dir, elapsed, f"networkx {nx.__version__}")
+    return problems
+
+
+def summary_problems(bname, m, label, n, setup, fetch, ctx, r, notes) -> list[str]:
+    """Cross-checks of the four summaries with each other, with counts(), the floor and (grid) known topology."""
+    problems = []
+    V, H, E, P = setup["counts"]
+    st = r["stats"]["stats"] if r.get("stats") else None
+    if st:
+        notes.append(f"{bname} {label}: stats() = " + ", ".join(f"{k}={v}" for k, v in st.items()))
+        got = (st["vertices"], st["halfedges"], st["edges"], st["polygons"])
+        if got != (V, H, E, P):
+            problems.append(f"{bname} {label}: stats() counts V/H/E/P {got} vs counts() {(V, H, E, P)}")
+        expect = {}
+        if ctx and "ncc" in ctx:
+            expect["components"] = ctx["ncc"]
+        if r.get("boundary_loops"):
+            expect["boundary_loops"] = r["boundary_loops"]["count"]
+        if r.get("components"):
+            expect["components"] = r["components"]["count"]
+        if m == "grid":
+            expect.update(boundary_loops=1, components=1, euler_characteristic=1, genus=0, is_closed=False,
+                          is_manifold=True, boundary_edges=4 * (n - 1), isolated_vertices=0)
+        if fetch:
+            expect["boundary_edges"] = expect.get("boundary_edges", fetch["free_halfedges"] - 2 * st["wire_edges"])
+        for k, v in expect.items():
+            if st[k] != v:
+                problems.append(f"{bname} {label}: stats().{k} = {st[k]}, expected {v}")
+    bl = r.get("boundary_loops")
+    if bl:
+        notes.append(f"{bname} {label}: boundary_loops() {bl['count']:,} loops, {bl['halfedges']:,} half-edges")
+        if fetch and bl["halfedges"] != fetch["free_halfedges"]:
+            problems.append(f"{bname} {label}: boundary_loops() holds {bl['halfedges']:,} half-edges, "
+                            f"the mesh has {fetch['free_halfedges']:,} free ones")
+    cc = r.get("components")
+    if cc:
+        notes.append(f"{bname} {label}: components() {cc['count']:,} components, the largest {cc['largest']:,} vertices")
+        if cc["vertices"] != V:
+            problems.append(f"{bname} {label}: components() cover {cc['vertices']:,} vertices of {V:,}")
+        if ctx and "ncc" in ctx and cc["count"] != ctx["ncc"]:
+            problems.append(f"{bname} {label}: components() gives {cc['count']:,}, networkx {ctx['ncc']:,}")
+    ch = r.get("check")
+    if ch and ch["violations"]:
+        problems.append(f"{bname} {label}: check() found {ch['violations']} violations, e.g. {ch['examples']}")
+    return problems
+
+
+if __name__ == "__main__":
+    sys.exit(main())
