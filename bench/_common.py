@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import argparse
 import math
 import os
 import platform
@@ -630,6 +631,43 @@ def meshes_dir() -> str:
     if env:
         return env
     return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
+
+def mesh_bench_parser(doc: str, *, workdir_help: str, profile_help: str) -> argparse.ArgumentParser:
+    """The options every 1 M-mesh benchmark (``import.py``, ``graph.py``) takes."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql (default both)")
+    ap.add_argument("--only", default=",".join(MESHES), help="meshes to run: grid, bunny, igea (default all)")
+    ap.add_argument("--n", type=int, default=710, help="grid vertices per side (default 710: 1,005,362 triangles)")
+    ap.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
+                    help="PostgreSQL server to use; a database is created there for the run and dropped at the end")
+    ap.add_argument("--workdir", help=workdir_help)
+    ap.add_argument("--meshes-dir", default=meshes_dir(),
+                    help="folder of the shared mesh files (default $HESTORE_BENCH_MESHES, else ../shared/meshes)")
+    ap.add_argument("--profile", choices=("over", "all", "off"), default="over", help=profile_help)
+    ap.add_argument("--timeout", type=float, default=1800, help="seconds allowed per step (default 1800)")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    return ap
+
+
+def selected_meshes(ap: argparse.ArgumentParser, args: argparse.Namespace, known_backends) -> tuple[list, list, list]:
+    """``(meshes, backends, skipped)`` from ``--only`` and ``--backends``; a missing file skips its mesh."""
+    only = [m.strip() for m in args.only.split(",") if m.strip()]
+    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
+    for m in only:
+        if m not in MESHES:
+            ap.error(f"unknown mesh {m!r} (choose from {', '.join(MESHES)})")
+    for b in backends:
+        if b not in known_backends:
+            ap.error(f"unknown backend {b!r}")
+    if args.n < 2:
+        ap.error("--n must be at least 2")
+    skipped: list[str] = []
+    for m in list(only):
+        if m in FILES and not os.path.exists(os.path.join(args.meshes_dir, FILES[m])):
+            skipped.append(f"{m}: {os.path.join(args.meshes_dir, FILES[m])} not found")
+            only.remove(m)
+    return only, backends, skipped
+
 
 
 def grid_arrays(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -58,7 +58,6 @@ with networkx's component count; check() is empty.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import cProfile
 import gc
@@ -82,9 +81,9 @@ import numpy as np  # noqa: E402
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
-    DEFAULT_PG_URL,
+    mesh_bench_parser,
+    selected_meshes,
     FILES,
-    MESHES,
     PgRun,
     Runner,
     child_main,
@@ -94,7 +93,6 @@ from _common import (  # noqa: E402
     grid_arrays,
     maxrss,
     mesh_label,
-    meshes_dir,
     pg_connect,
     pg_copy_columns,
     pg_drop_schema,
@@ -618,39 +616,13 @@ def floor_of(kind: str, variant: str, fetch: dict | None, build: dict | None) ->
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql (default both)")
-    ap.add_argument("--only", default=",".join(MESHES), help="meshes to run: grid, bunny, igea (default all)")
-    ap.add_argument("--n", type=int, default=710, help="grid vertices per side (default 710: 1,005,362 triangles)")
-    ap.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
-                    help="PostgreSQL server to use; a database is created there for the run and dropped at the end")
-    ap.add_argument("--workdir", help="where SQLite files and arrays go (default: a temporary folder, removed at the end)")
-    ap.add_argument("--meshes-dir", default=meshes_dir(),
-                    help="folder of the shared mesh files (default $HESTORE_BENCH_MESHES, else ../shared/meshes)")
-    ap.add_argument("--profile", choices=("over", "all", "off"), default="over",
-                    help="rerun a figure under cProfile when it is over its target (default), always, or never")
-    ap.add_argument("--timeout", type=float, default=1800, help="seconds allowed per step (default 1800)")
-    ap.add_argument("--child", help=argparse.SUPPRESS)
+    ap = mesh_bench_parser(__doc__, workdir_help="where SQLite files and arrays go (default: a temporary folder, removed at the end)",
+                           profile_help="rerun a figure under cProfile when it is over its target (default), always, or never")
     args = ap.parse_args(argv)
     if args.child:
         return child_main(JOBS, args.child)
 
-    only = [m.strip() for m in args.only.split(",") if m.strip()]
-    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
-    for m in only:
-        if m not in MESHES:
-            ap.error(f"unknown mesh {m!r} (choose from {', '.join(MESHES)})")
-    for b in backends:
-        if b not in FETCHES:
-            ap.error(f"unknown backend {b!r}")
-    if args.n < 2:
-        ap.error("--n must be at least 2")
-
-    skipped: list[str] = []
-    for m in list(only):
-        if m in FILES and not os.path.exists(os.path.join(args.meshes_dir, FILES[m])):
-            skipped.append(f"{m}: {os.path.join(args.meshes_dir, FILES[m])} not found")
-            only.remove(m)
+    only, backends, skipped = selected_meshes(ap, args, FETCHES)
 
     own_workdir = args.workdir is None
     workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_graph_")
