@@ -632,6 +632,28 @@ def meshes_dir() -> str:
         return env
     return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
 
+@dataclass
+class Figure:
+    """One row of a 1 M-mesh benchmark's table: a time beside its floor and target."""
+
+    backend: str
+    mesh: str
+    name: str
+    seconds: float | None
+    floor: float | None
+    floor_parts: str
+    target: str
+    rss: int | None
+    verdict: str
+    cpu: float | None = None
+
+    @property
+    def ratio(self) -> float | None:
+        if self.seconds is None or not self.floor:
+            return None
+        return self.seconds / self.floor
+
+
 def mesh_bench_parser(doc: str, *, workdir_help: str, profile_help: str) -> argparse.ArgumentParser:
     """The options every 1 M-mesh benchmark (``import.py``, ``graph.py``) takes."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)

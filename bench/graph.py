@@ -81,6 +81,7 @@ import numpy as np  # noqa: E402
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
+    Figure,
     mesh_bench_parser,
     selected_meshes,
     FILES,
@@ -569,26 +570,6 @@ JOBS = {"setup": job_setup, "fetch": job_fetch, "build": job_build, "to_networkx
 # ==========================================================================
 # The parent
 
-
-
-@dataclass
-class Figure:
-    backend: str
-    mesh: str
-    name: str
-    seconds: float | None
-    floor: float | None
-    floor_parts: str
-    target: str
-    rss: int | None
-    verdict: str
-    cpu: float | None = None
-
-    @property
-    def ratio(self) -> float | None:
-        if self.seconds is None or not self.floor:
-            return None
-        return self.seconds / self.floor
 
 
 def fetch_best(fetch: dict, query: str) -> tuple[float, str]:

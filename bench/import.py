@@ -77,6 +77,7 @@ import hestore  # noqa: E402
 from hestore import formats, schema  # noqa: E402
 from hestore.build import Ragged, build  # noqa: E402
 from _common import (  # noqa: E402
+    Figure,
     mesh_bench_parser,
     selected_meshes,
     FILES,
@@ -771,26 +772,6 @@ JOBS = {
     "export": job_export,
     "write_floor": job_write_floor,
 }
-
-
-@dataclass
-class Figure:
-    backend: str
-    mesh: str
-    name: str
-    seconds: float | None
-    floor: float | None
-    floor_parts: str
-    target: str
-    rss: int | None
-    verdict: str
-    cpu: float | None = None
-
-    @property
-    def ratio(self) -> float | None:
-        if self.seconds is None or not self.floor:
-            return None
-        return self.seconds / self.floor
 
 
 def main(argv=None) -> int:
