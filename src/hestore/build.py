@@ -57,9 +57,6 @@ class Ragged(NamedTuple):
     def __len__(self) -> int:
         return len(self.offsets) - 1
 
-    def polygon(self, i: int) -> list[int]:
-        return self.indices[self.offsets[i] : self.offsets[i + 1]].tolist()
-
 
 def ragged(polygons) -> Ragged:
     """Normalise polygons given as an ``(F, k)`` array or a sequence of sequences.
