@@ -74,7 +74,8 @@ import numpy as np  # noqa: E402
 import sqlalchemy as sa  # noqa: E402
 
 import hestore  # noqa: E402
-from hestore import formats, schema  # noqa: E402
+from hestore import io as formats  # noqa: E402
+from hestore import schema  # noqa: E402
 from hestore.build import Ragged, build  # noqa: E402
 from _common import (  # noqa: E402
     Figure,

@@ -17,7 +17,7 @@ import struct
 import numpy as np
 import pytest
 
-from hestore import formats
+from hestore import io as formats
 from hestore.errors import InvalidInputError
 from meshes import require_shared_meshes, shared_meshes
 

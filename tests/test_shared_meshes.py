@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hestore import formats
+from hestore import io as formats
 from hestore.errors import InvalidInputError, TopologyError
 
 from helpers import dump

@@ -23,7 +23,8 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import build as _build
-from hestore import formats, schema
+from hestore import io as mesh_io
+from hestore import schema
 from hestore.columns import read_columns, uses_copy, write_columns
 from hestore.errors import InvalidInputError, MeshExistsError
 
@@ -309,14 +310,14 @@ def import_file(
     """
     _check_on_error(on_error)
     path = os.fspath(path)
-    kind = formats.format_of(path)
+    kind = mesh_io.format_of(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
     _check_name(store, name)
     read_progress = None
     if progress is not None:
         read_progress = lambda done, total: progress("read", done, total)  # noqa: E731
-    soup = formats.read(path, progress=read_progress)
+    soup = mesh_io.read(path, progress=read_progress)
     return _import(
         store,
         name,
@@ -425,7 +426,7 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     >>> store.import_file(path, "again").mesh.to_arrays().polygons.tolist()
     [[0, 1, 2]]
     """
-    formats.format_of(path)
+    mesh_io.format_of(path)
     if progress is not None:
         progress("read", 0, 1)
     positions, soup, vertex_ids = _soup(mesh)
@@ -440,4 +441,4 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     write_progress = None
     if progress is not None:
         write_progress = lambda done, total: progress("write", done, total)  # noqa: E731
-    formats.write(path, positions, soup.offsets, soup.indices, binary=binary, progress=write_progress)
+    mesh_io.write(path, positions, soup.offsets, soup.indices, binary=binary, progress=write_progress)

@@ -60,7 +60,7 @@ A malformed file raises `~hestore.errors.InvalidInputError` with the message
 Examples
 --------
 >>> import pathlib, tempfile
->>> from hestore import formats
+>>> from hestore import io as formats
 >>> folder = tempfile.TemporaryDirectory()
 >>> path = pathlib.Path(folder.name) / "pyramid.off"
 >>> positions = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 1)]
