@@ -35,7 +35,7 @@ def dump(source) -> dict[str, list[tuple]]:
     (read through a fresh connection: committed data only).
     """
     if isinstance(source, hestore.Store):
-        with source._read() as conn:
+        with source.session.reading() as conn:
             return {t.name: _rows(conn, t) for t in TABLES}
     engine = sa.create_engine(source, poolclass=sa.pool.NullPool)
     try:
@@ -95,8 +95,8 @@ def assert_refused(
         assert extra.position == (0.5, 0.25, 0.125)
     after = dump(url)
     assert mesh.revision == rev + 1
-    assert _without(after, extra.id, mesh._id) == _without(before, extra.id, mesh._id)
-    assert (mesh._id, extra.id, None, 0.5, 0.25, 0.125) in after["vertices"]
+    assert _without(after, extra.id, mesh.id) == _without(before, extra.id, mesh.id)
+    assert (mesh.id, extra.id, None, 0.5, 0.25, 0.125) in after["vertices"]
     assert mesh.check() == []
     mesh.remove_vertex(extra)
     return info

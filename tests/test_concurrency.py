@@ -203,12 +203,12 @@ def test_concurrent_writers_to_one_mesh_lose_nothing(db_url, n_workers, k):
         assert hub.degree == 2 * hub_triangles
         # ids are unique (the tables' keys) and dense: no id handed out twice, none lost
         d = dump(store)
-        vertex_ids = sorted(r[1] for r in d["vertices"] if r[0] == mesh._id)
+        vertex_ids = sorted(r[1] for r in d["vertices"] if r[0] == mesh.id)
         assert vertex_ids == list(range(len(vertex_ids)))
-        polygon_ids = sorted(r[1] for r in d["polygons"] if r[0] == mesh._id)
+        polygon_ids = sorted(r[1] for r in d["polygons"] if r[0] == mesh.id)
         assert polygon_ids == list(range(len(polygon_ids)))
         # each worker's vertices are all there (x = worker number)
-        xs = [r[3] for r in d["vertices"] if r[0] == mesh._id and r[1] != 0]
+        xs = [r[3] for r in d["vertices"] if r[0] == mesh.id and r[1] != 0]
         for r in reports:
             assert xs.count(float(r[1])) == r[4]["vertices"]
 
@@ -333,7 +333,7 @@ def test_store_busy_inside_a_block_leaves_the_block_usable(db_url, backend):
         pytest.skip("SQLite takes its single write lock when the block begins: there is no per-mesh lock to miss")
     _setup(db_url, "m", "n")
     with hestore.open(db_url) as s:
-        m_id = s.mesh("m")._id
+        m_id = s.mesh("m").id
     committed_m = [r for r in dump(db_url)["vertices"] if r[0] == m_id]
     p, release, results = _hold(db_url, "m")
     try:
@@ -398,7 +398,7 @@ def test_writer_waiting_for_a_mesh_that_gets_deleted(db_url):
     """B waits for A's lock; A deletes the mesh and commits; B gets MeshNotFoundError, leaving no rows."""
     _setup(db_url, "m", "n")
     with hestore.open(db_url) as s:
-        m_id = s.mesh("m")._id
+        m_id = s.mesh("m").id
     p, release, results = _hold(db_url, "m", action="delete")
     try:
         with hestore.open(db_url, busy_timeout=30.0) as b:

@@ -456,7 +456,7 @@ def test_committed_state_inside_a_block(mesh, store):
     assert_all_kinds(mesh)
 
     # Not cached when the block starts: built through a second connection.
-    graphs._cache.clear()
+    store.session.caches.clear()
     with store.transaction():
         mesh.add_vertex()
         mesh.remove_vertex(c)
@@ -529,8 +529,8 @@ def test_dangling_reference_is_reported(mesh, store):
     a, b = mesh.add_vertex(), mesh.add_vertex()
     mesh.add_edge(a, b)
     h = schema.halfedges
-    with store._read() as conn:
-        conn.execute(h.update().where(h.c.mesh_id == mesh._id, h.c.id == 1).values(origin=77))
+    with store.session.reading() as conn:
+        conn.execute(h.update().where(h.c.mesh_id == mesh.id, h.c.id == 1).values(origin=77))
         conn.execute(schema.meshes.update().values(revision=schema.meshes.c.revision + 1))
     for kind in ("multigraph", "graph", "halfedge"):
         with pytest.raises(InvariantViolationError, match="REF halfedge 1: origin = 77, but there is no vertex 77"):

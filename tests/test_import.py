@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 import hestore
 from hestore import schema
 from hestore.build import build
+from hestore.validation import check_arrays
 from hestore.errors import (
     HalfEdgeNotFreeError,
     InvalidInputError,
@@ -37,9 +38,9 @@ _names = itertools.count()
 
 
 def _rows(store: hestore.Store, mesh: hestore.Mesh, table: sa.Table) -> list[tuple]:
-    with store._read() as conn:
+    with store.session.reading() as conn:
         cols = [c for c in table.c if c.name != "mesh_id"]
-        return [tuple(r) for r in conn.execute(sa.select(*cols).where(table.c.mesh_id == mesh._id).order_by(table.c.id))]
+        return [tuple(r) for r in conn.execute(sa.select(*cols).where(table.c.mesh_id == mesh.id).order_by(table.c.id))]
 
 
 def signature(mesh: hestore.Mesh) -> dict:
@@ -297,10 +298,14 @@ def test_to_arrays_of_an_empty_and_of_a_deleted_mesh(store):
 def test_build_without_a_database():
     b = build(4, np.array([[0, 1, 2], [0, 2, 3]]))
     a = b.arrays
-    ids = np.arange(a.halfedges)
+    ids = np.arange(len(a.he_id))
+    assert (a.he_id == ids).all() and (a.he_twin == ids ^ 1).all() and (a.he_edge == ids >> 1).all()
     # next and prev are inverse permutations; twins start where the other ends
-    assert (a.prev[a.next] == ids).all()
-    assert (a.origin[a.next] == a.origin[ids ^ 1]).all()
-    assert (a.polygon[a.next] == a.polygon).all()
-    free = a.polygon < 0
-    assert (free[a.vertex_halfedge[a.origin[free]]]).all()  # V_BOUNDARY
+    assert (a.he_prev[a.he_next] == ids).all()
+    assert (a.he_origin[a.he_next] == a.he_origin[ids ^ 1]).all()
+    assert (a.he_polygon[a.he_next] == a.he_polygon).all()
+    free = a.he_polygon < 0
+    assert (free[a.v_halfedge[a.he_origin[free]]]).all()  # V_BOUNDARY
+    # The same arrays are what validation checks: no database needed.
+    assert check_arrays(a) == []
+    assert check_arrays(a._replace(he_next=np.roll(a.he_next, 1))) != []

@@ -311,7 +311,7 @@ class MeshMachine(RuleBasedStateMachine):
 
     def new_ids(self, table: str, known) -> list[int]:
         rows = dump(self.store)[table]
-        return sorted(r[1] for r in rows if r[0] == self.mesh._id and r[1] not in known)
+        return sorted(r[1] for r in rows if r[0] == self.mesh.id and r[1] not in known)
 
     # -- blocks -----------------------------------------------------------------
 
@@ -699,7 +699,7 @@ class MeshMachine(RuleBasedStateMachine):
         self.last_dump = d
         if not self.stack:
             self.committed_dump = d
-        mid = mesh._id
+        mid = mesh.id
         assert mesh.check() == []
         assert {r[1] for r in d["vertices"] if r[0] == mid} == m.vertices
         assert {r[1] for r in d["edges"] if r[0] == mid} == set(m.edges)
@@ -761,7 +761,7 @@ def test_state_machine(db_url, backend):
 def model_of(mesh) -> Model:
     """A `Model` read back from the stored mesh."""
     d = dump(mesh.store)
-    mid = mesh._id
+    mid = mesh.id
     model = Model()
     model.vertices = {r[1] for r in d["vertices"] if r[0] == mid}
     rows = {r[HE_ID]: r for r in d["halfedges"] if r[0] == mid}

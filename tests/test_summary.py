@@ -23,7 +23,8 @@ import pytest
 
 import hestore
 from hestore import MeshNotFoundError, Stats
-from hestore.summary import _component_roots, _cycle_positions
+from hestore.arrays import cycle_positions as _cycle_positions
+from hestore.summary import _component_roots
 
 from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, TETRAHEDRON, build_faces, grid
 from meshes import require_shared_meshes

@@ -658,7 +658,7 @@ def test_delete_mesh_commit_removes_every_row(store, mesh, db_url):
     keep = store.create_mesh("keep")
     keep.add_polygon([keep.add_vertex() for _ in range(3)])
     # meshes rows start with the mesh id, element rows with their mesh_id
-    kept = {t: [r for r in rows if r[0] == keep._id] for t, rows in dump_url(db_url).items()}
+    kept = {t: [r for r in rows if r[0] == keep.id] for t, rows in dump_url(db_url).items()}
     with store.transaction():
         store.delete_mesh("m")
     after = dump_url(db_url)

@@ -21,13 +21,12 @@ from hypothesis import strategies as st
 
 from hestore import schema
 from hestore import columns, validation
-from hestore.errors import InvalidInputError
+from hestore.arrays import Index, TopologyArrays, cycles
+from hestore.errors import InvalidInputError, Violation
 from hestore.validation import (
     CODE_DESCRIPTIONS,
     CODES,
     KINDS,
-    TopologyArrays,
-    Violation,
     check_arrays,
     load_arrays,
 )
@@ -762,14 +761,14 @@ def test_random_next_functions_never_hang(seed):
 def test_cycles_labels_functional_graphs():
     # 0 -> 1 -> 2 -> 0 is a cycle, 3 -> 4 -> 1 a tail into it, 5 a fixed point, 6 -> 5
     f = np.array([1, 2, 0, 4, 1, 5, 5])
-    label, on_cycle, end = validation._cycles(f)
+    label, on_cycle, end = cycles(f)
     assert list(on_cycle) == [True, True, True, False, False, True, False]
     assert list(label[:3]) == [0, 0, 0] and label[5] == 5
     assert f[end[3]] in (0, 1, 2) and end[6] == 5
     # a permutation with long cycles
     rng = np.random.default_rng(1)
     perm = rng.permutation(1000)
-    label, on_cycle, end = validation._cycles(perm)
+    label, on_cycle, end = cycles(perm)
     assert on_cycle.all()
     assert np.array_equal(label[perm], label)  # constant along cycles
     # the least element of each cycle is its own label
@@ -1005,7 +1004,7 @@ def test_index_modes():
         np.sort(rng.choice(10**12, 3000, replace=False)),  # sparse: sorted search
         np.array([], dtype=np.int64),
     ):
-        index = validation._Index(ids.astype(np.int64))
+        index = Index(ids.astype(np.int64))
         refs = np.concatenate([ids, ids[::-1], [-1, -5, 10**13, 7, 15, 99]]).astype(np.int64)
         rows, ok = index.find(refs)
         expected_ok = np.isin(refs, ids)

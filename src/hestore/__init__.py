@@ -31,15 +31,17 @@ from hestore.errors import (
     PolicyError,
     SchemaVersionError,
     StoreBusyError,
+    StoreError,
     TopologyError,
     VertexNotFreeError,
+    Violation,
+    WrongThreadError,
 )
 from hestore.bulk import ImportReport, MeshArrays, SkippedPolygon
 from hestore.handles import Edge, HalfEdge, Polygon, Vertex
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
 from hestore.summary import Stats
-from hestore.validation import Violation
 
 __version__ = "0.1.0"
 
@@ -69,6 +71,8 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "InvariantViolationError",
+    "StoreError",
     "StoreBusyError",
     "SchemaVersionError",
+    "WrongThreadError",
 ]

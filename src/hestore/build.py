@@ -41,75 +41,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hestore.arrays import Ragged, TopologyArrays, cyclic_next, ragged, run_heads, run_starts
 from hestore.errors import HalfEdgeNotFreeError, InvalidInputError, NonManifoldError, PolicyError, VertexNotFreeError
 
-__all__ = ["Ragged", "ragged", "Refusal", "HalfEdgeArrays", "Built", "build"]
+__all__ = ["Refusal", "Built", "build"]
 
 _I64 = np.int64
-
-
-class Ragged(NamedTuple):
-    """Polygons as one flat index array: polygon ``i`` is ``indices[offsets[i]:offsets[i + 1]]``."""
-
-    offsets: np.ndarray
-    indices: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.offsets) - 1
-
-
-def ragged(polygons) -> Ragged:
-    """Normalise polygons given as an ``(F, k)`` array or a sequence of sequences.
-
-    Parameters
-    ----------
-    polygons : array_like or sequence of sequences of int, or Ragged
-        Vertex indices, one row per polygon.
-
-    Returns
-    -------
-    Ragged
-
-    Raises
-    ------
-    InvalidInputError
-        When an index is not an integer.
-
-    Examples
-    --------
-    >>> r = ragged([[0, 1, 2], [2, 1, 3, 4]])
-    >>> r.offsets.tolist(), r.indices.tolist()
-    ([0, 3, 7], [0, 1, 2, 2, 1, 3, 4])
-    >>> ragged(np.array([[0, 1, 2], [0, 2, 3]])).offsets.tolist()
-    [0, 3, 6]
-    """
-    if isinstance(polygons, Ragged):
-        return Ragged(np.asarray(polygons.offsets, dtype=_I64), _as_indices(polygons.indices))
-    if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
-        f, k = polygons.shape
-        return Ragged(np.arange(f + 1, dtype=_I64) * k, _as_indices(polygons.reshape(-1)))
-    if isinstance(polygons, np.ndarray) and polygons.ndim != 1:
-        raise InvalidInputError(f"polygons must be an (F, k) array or a sequence of index sequences, not a {polygons.ndim}-d array")
-    try:
-        rows = [np.asarray(p).reshape(-1) for p in polygons]
-    except TypeError:
-        raise InvalidInputError(f"polygons must be an (F, k) array or a sequence of index sequences, not {type(polygons).__name__}") from None
-    lengths = np.fromiter((len(r) for r in rows), dtype=_I64, count=len(rows))
-    offsets = np.zeros(len(rows) + 1, dtype=_I64)
-    np.cumsum(lengths, out=offsets[1:])
-    flat = np.concatenate(rows) if rows else np.zeros(0, dtype=_I64)
-    return Ragged(offsets, _as_indices(flat))
-
-
-def _as_indices(a) -> np.ndarray:
-    a = np.asarray(a)
-    if a.size == 0:
-        return a.astype(_I64).reshape(-1)
-    if a.dtype.kind in "iu":
-        return a.astype(_I64, copy=False)
-    if a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.round(a)):
-        return a.astype(_I64)
-    raise InvalidInputError(f"polygon vertex indices must be integers, got {a.dtype} values such as {a.reshape(-1)[:3].tolist()}")
 
 
 class Refusal(NamedTuple):
@@ -121,36 +58,26 @@ class Refusal(NamedTuple):
 
 
 @dataclass(frozen=True)
-class HalfEdgeArrays:
-    """Every column of a mesh's tables, ids implicit in the row numbers.
+class Built:
+    """What `build` decided and made.
 
-    ``twin(h) = h ^ 1`` and ``edge(h) = h >> 1`` are implicit too; ``-1``
-    stands for NULL.
+    Attributes
+    ----------
+    arrays : TopologyArrays
+        Every table of the new mesh, with the ids it will be stored under:
+        vertex ``i`` is input row ``i``, edge ``e`` owns half-edges ``2e``
+        (its first use) and ``2e + 1``, polygon ``i`` is input polygon
+        ``accepted[i]``. `hestore.validation.check_arrays` checks them
+        before anything is written.
+    accepted : ndarray
+        Input indices of the stored polygons, ascending.
+    refused : list of Refusal
+        Every refused polygon, in input order.
     """
 
-    origin: np.ndarray  #: (H,) vertex of each half-edge
-    next: np.ndarray  #: (H,)
-    prev: np.ndarray  #: (H,)
-    polygon: np.ndarray  #: (H,) polygon id or -1 when free
-    vertex_halfedge: np.ndarray  #: (V,) an outgoing half-edge, -1 when isolated
-    polygon_halfedge: np.ndarray  #: (P,) the half-edge from the polygon's first input vertex
-
-    @property
-    def halfedges(self) -> int:
-        return len(self.origin)
-
-    @property
-    def edges(self) -> int:
-        return len(self.origin) // 2
-
-
-@dataclass(frozen=True)
-class Built:
-    """What `build` decided and made."""
-
-    arrays: HalfEdgeArrays
-    accepted: np.ndarray  #: input indices of the stored polygons, ascending; polygon id i is accepted[i]
-    refused: list[Refusal]  #: every refused polygon, in input order
+    arrays: TopologyArrays
+    accepted: np.ndarray
+    refused: list[Refusal]
 
 
 class _Corners(NamedTuple):
@@ -207,8 +134,11 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
     use the diagonal the same way as the first:
 
     >>> b = build(4, [[0, 1, 2], [0, 2, 3], [0, 1, 2]])
-    >>> b.accepted.tolist(), b.arrays.edges, b.arrays.halfedges
+    >>> b.accepted.tolist(), len(b.arrays.e_id), len(b.arrays.he_id)
     ([0, 1], 5, 10)
+    >>> from hestore.validation import check_arrays
+    >>> check_arrays(b.arrays)
+    []
     >>> b.refused[0].index, b.refused[0].error.__name__
     (2, 'HalfEdgeNotFreeError')
     """
@@ -273,7 +203,7 @@ def _refuse_overused(c: _Corners, order: np.ndarray, ok: np.ndarray, refused: di
     only two sides, so no order of insertion could take it.
     """
     slot, poly = c.slot[order], c.poly[order]
-    run = _runs(_starts(slot, poly))
+    run = run_heads(run_starts(slot, poly))
     times = np.bincount(run, minlength=len(run))[run]
     cap = np.where(c.loop[order], 2, 1)
     for pos in order[times > cap].tolist():
@@ -282,31 +212,6 @@ def _refuse_overused(c: _Corners, order: np.ndarray, ok: np.ndarray, refused: di
             what = f"runs the self-loop at vertex {a} more than twice" if a == b else f"runs {a}→{b} twice"
             refused[p] = Refusal(p, HalfEdgeNotFreeError, f"it {what}, but an edge has only two sides (a repeated vertex the structure cannot take)")
             ok[p] = False
-
-
-def _starts(*sorted_keys: np.ndarray) -> np.ndarray:
-    """Where a run of equal key tuples begins, in arrays sorted by those keys."""
-    n = len(sorted_keys[0])
-    start = np.zeros(n, dtype=bool)
-    start[:1] = True
-    for k in sorted_keys:
-        start[1:] |= k[1:] != k[:-1]
-    return start
-
-
-def _runs(start: np.ndarray) -> np.ndarray:
-    """For each position, the position where its run begins (``start`` flags the beginnings)."""
-    return np.maximum.accumulate(np.where(start, np.arange(len(start)), 0))
-
-
-def _cyclic_next(start: np.ndarray) -> np.ndarray:
-    """Each position's successor within its run, the last of a run wrapping to the first."""
-    n = len(start)
-    last = np.ones(n, dtype=bool)
-    last[:-1] = start[1:]
-    succ = np.arange(1, n + 1)
-    succ[last] = _runs(start)[last]
-    return succ
 
 
 def _settle_edge_uses(ok: np.ndarray, c: _Corners, order: np.ndarray) -> np.ndarray:
@@ -324,8 +229,8 @@ def _settle_edge_uses(ok: np.ndarray, c: _Corners, order: np.ndarray) -> np.ndar
         return ok.copy()
     slot, s_poly = c.slot[order], c.poly[order]
     cap = np.where(c.loop[order], 2, 1)
-    run = _runs(_starts(slot))
-    own_run = _runs(_starts(slot, s_poly))  # this polygon's uses of this pair
+    run = run_heads(run_starts(slot))
+    own_run = run_heads(run_starts(slot, s_poly))  # this polygon's uses of this pair
     own = np.bincount(own_run, minlength=len(order))[own_run]
     while True:
         undecided = state[s_poly] == 0
@@ -359,7 +264,7 @@ def _assemble(n_vertices: int, c: _Corners, order: np.ndarray, accepted: np.ndar
     use = order[accepted[c.poly[order]]]  # accepted corners, sorted by (pair, direction, input order)
     pair = c.slot[use] >> 1
     n = len(use)
-    first_in_pair = _starts(pair)
+    first_in_pair = run_starts(pair)
     starts = np.flatnonzero(first_in_pair)
     # Each pair holds one or two uses (capacity); the earlier one in input order owns 2e.
     two = np.zeros(len(starts), dtype=bool)
@@ -391,8 +296,8 @@ def _assemble(n_vertices: int, c: _Corners, order: np.ndarray, accepted: np.ndar
     polygon[he] = new_id[kept_poly]
     # Within a polygon the corners are consecutive, so next is the following
     # corner except at the polygon's last corner, which wraps to its first.
-    starts_p = _starts(kept_poly)
-    succ = _cyclic_next(starts_p)
+    starts_p = run_starts(kept_poly)
+    succ = cyclic_next(starts_p)
     nxt[he] = he[succ]
     prv[he[succ]] = he
     return _Assembly(origin, nxt, prv, polygon, he[starts_p])
@@ -430,7 +335,7 @@ def _crowded_vertices(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.
     return np.flatnonzero((cycles > 1) | ((cycles > 0) & (opens > 0)))
 
 
-def _link_boundaries(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.ndarray]) -> HalfEdgeArrays:
+def _link_boundaries(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.ndarray]) -> TopologyArrays:
     """Link the free half-edges around each vertex and choose ``vertex.halfedge``."""
     nxt, prv = a.next, a.prev
     free = a.polygon < 0
@@ -445,14 +350,21 @@ def _link_boundaries(n_vertices: int, a: _Assembly, fans: tuple[np.ndarray, np.n
         g = start ^ 1
         order = np.lexsort((f, v))
         v, f, g = v[order], f[order], g[order]
-        after = _cyclic_next(_starts(v))
+        after = cyclic_next(run_starts(v))
         # Fan i's free incoming half-edge continues with fan i+1's free outgoing one.
         nxt[g] = f[after]
         prv[f[after]] = g
         ids = np.arange(len(a.origin), dtype=_I64)
         vhe[a.origin] = ids
         vhe[a.origin[free]] = ids[free]
-    return HalfEdgeArrays(a.origin, nxt, prv, a.polygon, vhe, a.polygon_halfedge)
+    ids = np.arange(len(a.origin), dtype=_I64)
+    edges = np.arange(len(a.origin) // 2, dtype=_I64)
+    return TopologyArrays(
+        he_id=ids, he_origin=a.origin, he_next=nxt, he_prev=prv, he_twin=ids ^ 1, he_edge=ids >> 1,
+        he_polygon=a.polygon, v_id=np.arange(n_vertices, dtype=_I64), v_halfedge=vhe,
+        e_id=edges, e_halfedge=2 * edges,
+        p_id=np.arange(len(a.polygon_halfedge), dtype=_I64), p_halfedge=a.polygon_halfedge,
+    )
 
 
 def _edge_refusal(p: int, c: _Corners, order: np.ndarray, accepted: np.ndarray, base: int) -> Refusal:

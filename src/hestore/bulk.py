@@ -2,10 +2,11 @@
 
 This module owns moving whole meshes in and out of a store:
 `import_arrays` and `import_file` (SPEC §5) decide and build the half-edge
-structure with `hestore.build` and write every table in large batches with
-`hestore.columns`, bypassing the per-edit unit of work; `to_arrays` and
-`export` read the tables back as columns and walk the polygon loops with
-numpy. File formats are `hestore.formats`'s.
+structure with `hestore.build`, then hand the whole tables to the mesh's unit
+of work (`UnitOfWork.insert_bulk`), whose flush writes them in large batches
+(`hestore.columns`) like any other change; `to_arrays` and `export` read the
+tables back as columns in one snapshot and walk the polygon loops with numpy.
+File formats are `hestore.io`'s.
 
 An import is one transaction: it stores the whole mesh or nothing. With
 ``on_error="raise"`` the first polygon the structure cannot take is reported
@@ -16,17 +17,19 @@ left out and listed in the `ImportReport`.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import build as _build
 from hestore import io as mesh_io
 from hestore import schema
-from hestore.columns import read_columns, uses_copy, write_columns
+from hestore.arrays import Ragged, TopologyArrays, polygon_loops, positions as position_array, ragged
+from hestore.columns import position_request
 from hestore.errors import InvalidInputError, MeshExistsError
+from hestore.unitofwork import BulkRows
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -108,16 +111,26 @@ def _check_on_error(on_error: str) -> None:
 
 
 def _as_positions(positions) -> np.ndarray:
+    what = "positions must be a (V, 3) or (V, 2) array of real numbers"
+    if isinstance(positions, (str, bytes, dict, set)) or not hasattr(positions, "__len__"):
+        raise InvalidInputError(f"{what}, not {type(positions).__name__}")
     try:
-        pos = np.asarray(positions, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError("positions must be an (V, 3) or (V, 2) array of numbers") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # numpy warns, and drops the imaginary part, for complex values
+            pos = np.asarray(positions)
+            if pos.dtype.kind in "iuO":
+                pos = pos.astype(np.float64)
+    except (TypeError, ValueError, Warning):
+        raise InvalidInputError(f"{what}; these are not") from None
+    if pos.size == 0:
+        return np.zeros((0, 3))
+    if pos.dtype.kind != "f":
+        raise InvalidInputError(f"{what}, not of {pos.dtype} values ({pos.reshape(-1)[:3].tolist()}...)")
+    pos = pos.astype(np.float64, copy=False)
     if pos.ndim == 2 and pos.shape[1] == 2:
         pos = np.column_stack([pos, np.zeros(len(pos))])
     if pos.ndim != 2 or pos.shape[1] != 3:
-        if pos.size == 0:
-            return np.zeros((0, 3))
-        raise InvalidInputError(f"positions must be an (V, 3) or (V, 2) array, not of shape {pos.shape}")
+        raise InvalidInputError(f"{what}, not of shape {pos.shape}")
     bad = ~np.isfinite(pos).all(axis=1)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
@@ -191,11 +204,10 @@ def import_arrays(
     """
     _check_on_error(on_error)
     _check_name(store, name)
-    return _import(store, name, _as_positions(positions), _build.ragged(polygons), on_error, allow_loops, allow_multi_edges, progress)
+    return _import(store, name, _as_positions(positions), ragged(polygons), on_error, allow_loops, allow_multi_edges, progress)
 
 
 def _check_name(store: "Store", name: str) -> None:
-    store._check_open()
     if name in store.meshes():
         raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
 
@@ -216,46 +228,35 @@ def _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, pr
         exc = error(f"{prefix}{first}; nothing was stored (on_error='skip' would leave it out)")
         exc.skipped = first
         raise exc
-    mesh = _write(store, name, pos, built, allow_loops, allow_multi_edges, progress)
-    return ImportReport(mesh, len(pos), built.arrays.edges, len(built.accepted), skipped, source)
+    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress)
+    return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source)
 
 
-def _write(store, name, pos, built, allow_loops, allow_multi_edges, progress) -> "Mesh":
-    """Create the mesh and write its four tables in one transaction."""
-    a = built.arrays
-    n_v, n_h, n_e, n_p = len(pos), a.halfedges, a.edges, len(built.accepted)
-    ids = np.arange(n_h, dtype=np.int64)
-    tables = [
-        (schema.vertices, {"id": np.arange(n_v), "halfedge": a.vertex_halfedge, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]}),
-        (schema.halfedges, {"id": ids, "origin": a.origin, "next": a.next, "prev": a.prev, "twin": ids ^ 1, "edge": ids >> 1, "polygon": a.polygon}),
-        (schema.edges, {"id": np.arange(n_e), "halfedge": 2 * np.arange(n_e)}),
-        (schema.polygons, {"id": np.arange(n_p), "halfedge": a.polygon_halfedge}),
-    ]
-    total = n_v + n_h + n_e + n_p
-    done = 0
-    outer = not store.in_transaction
-    dialect = store._engine.dialect
-    with store.transaction():
+def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress) -> "Mesh":
+    """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block)."""
+    tables = {
+        "vertices": {"id": a.v_id, "halfedge": a.v_halfedge, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]},
+        "halfedges": {
+            "id": a.he_id, "origin": a.he_origin, "next": a.he_next, "prev": a.he_prev,
+            "twin": a.he_twin, "edge": a.he_edge, "polygon": a.he_polygon,
+        },
+        "edges": {"id": a.e_id, "halfedge": a.e_halfedge},
+        "polygons": {"id": a.p_id, "halfedge": a.p_halfedge},
+    }
+    counters = (len(a.v_id), len(a.e_id), len(a.p_id))
+    total = sum(len(columns["id"]) for columns in tables.values())
+    report = None
+    if progress is not None:
+        report = lambda done, _total: progress("write", done, total)  # noqa: E731
+    session = store.session
+    outer = not session.in_transaction
+    with session.scope():
         mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges)
-        cursor = store._cursor()
-        for table, columns in tables:
-            report = None
-            if progress is not None:
-                report = lambda rows, base=done: progress("write", base + rows, total)  # noqa: E731
-            write_columns(cursor, dialect, table, mesh._id, columns, progress=report)
-            done += len(columns["id"])
-        m = schema.meshes
-        stmt = (
-            sa.update(m)
-            .where(m.c.id == mesh._id)
-            .values(next_vertex=n_v, next_edge=n_e, next_polygon=n_p, revision=m.c.revision + 1)
-        )
-        store._conn.execute(stmt)
-        store._bumped.add(mesh._id)
-    if outer and uses_copy(dialect):
+        with session.editing(mesh.ref) as uow:
+            uow.insert_bulk(BulkRows(tables, report), counters)
+    if outer:
         # Fresh statistics, so the planner knows how large the tables just became.
-        for table, _ in tables:
-            store._raw_exec(f"ANALYZE {table.name}")
+        session.analyze([schema.metadata.tables[t] for t in tables])
     if progress is not None:
         progress("write", total, total)
     return mesh
@@ -322,7 +323,7 @@ def import_file(
         store,
         name,
         soup.positions,
-        _build.Ragged(soup.offsets, soup.indices),
+        Ragged(soup.offsets, soup.indices),
         on_error,
         allow_loops,
         allow_multi_edges,
@@ -333,42 +334,14 @@ def import_file(
     )
 
 
-def _soup(mesh: "Mesh") -> tuple[np.ndarray, _build.Ragged, np.ndarray]:
-    """Positions, polygon loops (as rows) and vertex ids of the committed-or-own state."""
-    mesh.revision  # raises MeshNotFoundError for a deleted mesh
-    v, h, p = schema.vertices, schema.halfedges, schema.polygons
-    nan_free = [sa.func.coalesce(v.c[k], 0.0) for k in "xyz"]
-    missing = sa.case((v.c.x.is_(None) | v.c.y.is_(None) | v.c.z.is_(None), 1), else_=0)
-    with mesh._store._read() as conn:
-        (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_next), (p_id, p_he) = read_columns(
-            conn,
-            mesh._id,
-            [(v, [v.c.id, *nan_free, missing]), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])],
+def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray]:
+    """Positions, polygon loops (as rows) and vertex ids, read in one snapshot (a block's own edits included)."""
+    h, p = schema.halfedges, schema.polygons
+    with mesh.session.snapshot(mesh.ref) as snap:
+        (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_next), (_p_id, p_he) = snap.columns(
+            [position_request(), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])]
         )
-    positions = np.column_stack([vx, vy, vz])
-    positions[v_missing.astype(bool)] = np.nan
-    # Rows instead of ids: ids are never reused, so after deletions they have gaps.
-    next_row = np.searchsorted(h_id, h_next)
-    origin_row = np.searchsorted(v_id, h_origin)
-    start = np.searchsorted(h_id, p_he)
-    steps_v, steps_p = [], []
-    cur = start.copy()
-    active = np.arange(len(p_id))
-    for _ in range(len(h_id) + 1):
-        if not len(active):
-            break
-        steps_v.append(origin_row[cur])
-        steps_p.append(active)
-        cur = next_row[cur]
-        going = cur != start[active]
-        active, cur = active[going], cur[going]
-    poly = np.concatenate(steps_p) if steps_p else np.zeros(0, dtype=np.int64)
-    verts = np.concatenate(steps_v) if steps_v else np.zeros(0, dtype=np.int64)
-    order = np.argsort(poly, kind="stable")  # steps were appended in loop order
-    counts = np.bincount(poly, minlength=len(p_id))
-    offsets = np.zeros(len(p_id) + 1, dtype=np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    return positions, _build.Ragged(offsets, verts[order]), v_id
+    return position_array(vx, vy, vz, v_missing), polygon_loops(v_id, h_id, h_origin, h_next, p_he), v_id
 
 
 def to_arrays(mesh: "Mesh") -> MeshArrays:

@@ -30,230 +30,24 @@ import argparse
 import json
 import os
 import sys
-import time
-from collections.abc import Callable, Sequence
-from pathlib import Path
-from typing import TextIO
-
-import sqlalchemy as sa
-from alembic.util.exc import CommandError
+from collections.abc import Sequence
 
 import hestore
-from hestore import migrate
-from hestore.errors import HestoreError, MeshExistsError, SchemaVersionError
+from hestore import migrate, urls
+from hestore.errors import HestoreError, MeshExistsError
+from hestore.progress import ProgressBar
 
-__all__ = ["DEFAULT_URL", "ProgressBar", "main", "build_parser"]
+__all__ = ["DEFAULT_URL", "main", "build_parser"]
 
 #: The database used when neither ``--db`` nor ``$HESTORE_URL`` is given.
-DEFAULT_URL = "sqlite:///hestore.db"
+DEFAULT_URL = urls.DEFAULT_URL
 
-#: Database drivers hestore documents, and the extra that installs each.
-_DRIVER_EXTRAS = {"psycopg": "hestore[postgresql]"}
-
-
-def _url(args: argparse.Namespace) -> str:
-    url = args.db or os.environ.get("HESTORE_URL") or DEFAULT_URL
-    # As in hestore.open: a bare path means a SQLite file.
-    return url if "://" in url else f"sqlite:///{url}"
-
-
-def _shown(url: str | sa.URL) -> str:
-    # Never echo a password to the terminal (or into a CI log).
-    try:
-        return sa.make_url(url).render_as_string(hide_password=True)
-    except sa.exc.ArgumentError:
-        return str(url)
+#: Set it (to anything) to see the traceback of an unexpected error instead of one line.
+DEBUG_ENVIRONMENT = "HESTORE_DEBUG"
 
 
 def _open(args: argparse.Namespace) -> hestore.Store:
-    return hestore.open(_url(args))
-
-
-def _engine(url: str) -> sa.Engine:
-    # One short command, one connection: nothing to pool.
-    return sa.create_engine(url, poolclass=sa.pool.NullPool)
-
-
-def _sqlite_file_missing(url: str) -> Path | None:
-    """The path of a SQLite database file that does not exist yet, else None."""
-    parsed = sa.make_url(url)
-    if parsed.get_backend_name() != "sqlite":
-        return None
-    database = parsed.database or ""
-    if database in ("", ":memory:") or database.startswith("file:") or parsed.query.get("uri"):
-        return None
-    path = Path(database)
-    return None if path.exists() else path
-
-
-# -- progress ---------------------------------------------------------------
-
-
-def _isatty(stream: TextIO) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):  # no isatty, or a closed stream
-        return False
-
-
-def _columns(stream: TextIO) -> int:
-    """The width of the terminal behind ``stream`` (80 when it cannot be told)."""
-    try:
-        return os.get_terminal_size(stream.fileno()).columns or 80
-    except (AttributeError, ValueError, OSError):  # no file descriptor, or not a terminal
-        return 80
-
-
-def _amount(n: int, unit: str | None) -> str:
-    """``n`` in ``unit``, for people: bytes in B/KiB/MiB/GiB, anything else counted."""
-    if unit == "bytes":
-        if n < 1024:
-            return f"{n} B"
-        value = float(n)
-        for prefix in "KMGT":
-            value /= 1024
-            if value < 1024 or prefix == "T":
-                return f"{value:.1f} {prefix}iB"
-    return f"{n:,} {unit}" if unit else ""
-
-
-def _progress_amount(done: int, total: int, unit: str) -> str:
-    """``done`` of ``total``, e.g. ``1.2 MiB of 4.9 MiB`` or ``1,000 of 20,000 rows``."""
-    if unit == "bytes":
-        return f"{_amount(done, unit)} of {_amount(total, unit)}"
-    return f"{done:,} of {_amount(total, unit)}"
-
-
-class ProgressBar:
-    """A one-line progress display, called as ``progress(stage, done, total)``.
-
-    On a terminal it redraws one line in place (with ``\\r``), at most once
-    per ``interval`` seconds: the stage, a bar, the percentage and the amount
-    done (``units`` names each stage's unit; ``"bytes"`` is shown in
-    KiB/MiB/GiB, a stage without a unit shows only the percentage). Anywhere
-    else (a pipe, a log file) it draws nothing while running, so the output
-    holds no control characters. Either way, `close` after success writes one
-    plain line: each stage with its amount and time. After a failure it
-    erases the bar and writes nothing, so that the error stays one line.
-
-    Use it as a context manager: leaving the block closes it, successfully
-    unless an exception is leaving too.
-
-    Parameters
-    ----------
-    stream : text stream, optional
-        Where to draw; default ``sys.stderr``.
-    units : dict, optional
-        Stage name to unit (``{"read": "bytes", "write": "rows"}``).
-    interval : float
-        Least time between two redraws, in seconds.
-    width : int
-        Characters in the bar itself.
-    clock : callable
-        Returns the time in seconds (`time.monotonic`; tests pass a fake).
-
-    Examples
-    --------
-    >>> import io
-    >>> out = io.StringIO()  # not a terminal: one plain line at the end
-    >>> with ProgressBar(out, units={"read": "bytes", "write": "rows"}, clock=lambda: 0.0) as bar:
-    ...     bar("read", 2048, 4096)
-    ...     bar("read", 4096, 4096)
-    ...     bar("write", 12000, 12000)
-    >>> out.getvalue()
-    'read 4.0 KiB in 0.0 s, write 12,000 rows in 0.0 s\\n'
-    """
-
-    def __init__(
-        self,
-        stream: TextIO | None = None,
-        *,
-        units: dict[str, str] | None = None,
-        interval: float = 0.1,
-        width: int = 24,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = _isatty(self.stream)
-        self._columns = _columns(self.stream) if self.tty else 80
-        self.units = dict(units or {})
-        self.interval = interval
-        self.width = width
-        self.clock = clock
-        self._started = clock()
-        # stage -> [done, total, time of its last call], in the order the stages began
-        self._stages: dict[str, list] = {}
-        self._stage: str | None = None
-        self._drawn_at: float | None = None
-        self._shown = 0  # characters of the line now on screen
-        self._closed = False
-
-    def __call__(self, stage: str, done: int, total: int) -> None:
-        now = self.clock()
-        new_stage = stage != self._stage
-        if new_stage:
-            self._stage = stage
-            self._stages.pop(stage, None)  # a stage that comes back starts over, at the end
-        self._stages[stage] = [int(done), int(total), now]
-        # A new stage is always shown (there are a few); within one, at most every `interval`.
-        if self.tty and (new_stage or self._drawn_at is None or now - self._drawn_at >= self.interval):
-            # Never wider than the terminal: a wrapped line cannot be redrawn in place.
-            self._draw(self.line(stage, int(done), int(total))[: max(self._columns - 1, 1)])
-            self._drawn_at = now
-
-    def line(self, stage: str, done: int, total: int) -> str:
-        """The bar as drawn on a terminal, e.g. ``read  [######..................]  25%  1.0 MiB of 4.0 MiB``."""
-        done = min(max(done, 0), total) if total > 0 else done
-        fraction = done / total if total > 0 else 1.0
-        filled = int(fraction * self.width)
-        text = f"{stage:<5} [{'#' * filled}{'.' * (self.width - filled)}] {int(fraction * 100):3d}%"
-        unit = self.units.get(stage)
-        if unit:
-            text += "  " + _progress_amount(done, total, unit)
-        return text
-
-    def summary(self) -> str:
-        """Each stage with its amount and time, e.g. ``read 4.0 KiB in 0.1 s, build in 0.2 s``.
-
-        A stage's time runs from the previous stage's last call (or from the
-        bar's creation) to its own last call.
-        """
-        parts = []
-        since = self._started
-        for stage, (done, _total, last) in self._stages.items():
-            amount = _amount(done, self.units.get(stage))
-            seconds = max(last - since, 0.0)
-            parts.append(f"{stage} {amount} in {seconds:.1f} s" if amount else f"{stage} in {seconds:.1f} s")
-            since = last
-        return ", ".join(parts)
-
-    def _draw(self, text: str) -> None:
-        # Pad with spaces over what the previous line left on screen.
-        self.stream.write("\r" + text + " " * max(0, self._shown - len(text)))
-        self.stream.flush()
-        self._shown = len(text)
-
-    def close(self, ok: bool = True) -> None:
-        """Finish: the plain final line after success, nothing (the bar erased) after a failure."""
-        if self._closed:
-            return
-        self._closed = True
-        if ok and self._stages:
-            if self.tty:
-                self._draw(self.summary())
-                self.stream.write("\n")
-            else:
-                self.stream.write(self.summary() + "\n")
-        elif self.tty and self._shown:
-            self._draw("")
-            self.stream.write("\r")
-        self.stream.flush()
-
-    def __enter__(self) -> "ProgressBar":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        self.close(ok=exc_type is None)
+    return hestore.open(args.db)
 
 
 #: Units of the stages of `hestore.bulk`'s ``progress(stage, done, total)``.
@@ -276,7 +70,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
     with _open(args) as store:
         names = store.meshes()
         if not names:
-            print(f"no meshes in {_shown(store.url)}", file=sys.stderr)
+            print(f"no meshes in {urls.shown(store.url)}", file=sys.stderr)
             return 0
         width = max(len(name) for name in names)
         for name in names:
@@ -299,7 +93,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
             # As hestore.bulk.import_file: the file name without its extension.
             name = args.name if args.name is not None else os.path.splitext(os.path.basename(path))[0]
             return _error(
-                f"a mesh named {name!r} already exists in {_shown(store.url)}; "
+                f"a mesh named {name!r} already exists in {urls.shown(store.url)}; "
                 "import under another name with --name NAME"
             )
         except HestoreError as exc:
@@ -350,28 +144,10 @@ def _info(mesh: hestore.Mesh) -> dict:
         "allow_multi_edges": mesh.allow_multi_edges,
     }
     for key, value in mesh.stats().as_dict().items():
-        info.setdefault(key, _plain(value))
-    sizes = info.get("polygon_sizes")
-    if isinstance(sizes, dict):  # arity -> count, by arity
-        info["polygon_sizes"] = {int(k): sizes[k] for k in sorted(sizes, key=int)}
+        info.setdefault(key, value)
     # The labelled keys in their order, then any the labels do not know yet.
     order = {key: i for i, key in enumerate(_INFO_LABELS)}
     return dict(sorted(info.items(), key=lambda kv: order.get(kv[0], len(order))))
-
-
-def _plain(value: object) -> object:
-    """``value`` with numpy scalars (and containers of them) as Python ones, for JSON."""
-    if isinstance(value, dict):
-        return {_plain(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return type(value)(_plain(v) for v in value)
-    item = getattr(value, "item", None)
-    if item is not None and not isinstance(value, (bool, int, float, str)):
-        try:
-            return item()
-        except (TypeError, ValueError):
-            return value
-    return value
 
 
 #: How ``info`` labels each key of `_info` in its text form (unlisted keys show as they are),
@@ -446,9 +222,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
 #: How many components ``graph NAME components`` lists, the largest first.
 _TOP_COMPONENTS = 10
 
-#: The graph file formats ``graph NAME export`` writes, by extension.
-_GRAPH_FORMATS = {".graphml": "GraphML", ".edgelist": "edge list"}
-
 #: The kinds of `hestore.Mesh.to_networkx`, the default first: `hestore.graphs.KINDS`,
 #: repeated so that building the parser does not import networkx.
 _GRAPH_KINDS = ("multigraph", "graph", "halfedge", "dual")
@@ -515,144 +288,34 @@ def _cmd_graph_degree_histogram(args: argparse.Namespace) -> int:
     return 0
 
 
-def _graphml_value(value: object) -> object:
-    """A GraphML-writable attribute value: scalars as they are, None dropped, the rest as JSON text."""
-    value = _plain(value)
-    if value is None:
-        return _DROP
-    if isinstance(value, (bool, int, float, str)):
-        return value
-    return json.dumps(value)
-
-
-def _edgelist_value(value: object) -> object:
-    """An edge-list attribute value: a Python literal (`ast.literal_eval` reads it back)."""
-    return _plain(value)
-
-
-#: Returned by a converter for an attribute that is left out.
-_DROP = object()
-
-
-def _writable_copy(graph, convert: Callable[[object], object], *, key: str | None = None):
-    """A new, unfrozen graph of ``graph``'s type with every attribute value passed through ``convert``.
-
-    The views of `hestore.Mesh.to_networkx` are frozen and cached, so they are
-    never changed in place. With ``key``, a multigraph's edge keys are also
-    written as that edge attribute (an edge list has no place for keys).
-    """
-    import networkx as nx
-
-    def attrs(data: dict) -> dict:
-        out = {}
-        for name, value in data.items():
-            value = convert(value)
-            if value is not _DROP:
-                out[str(name)] = value
-        return out
-
-    multi, directed = graph.is_multigraph(), graph.is_directed()
-    classes = {
-        (False, False): nx.Graph,
-        (False, True): nx.DiGraph,
-        (True, False): nx.MultiGraph,
-        (True, True): nx.MultiDiGraph,
-    }
-    copy = classes[multi, directed]()
-    copy.graph.update(attrs(graph.graph))
-    copy.add_nodes_from((n, attrs(d)) for n, d in graph.nodes(data=True))
-    if multi:
-        copy.add_edges_from(
-            (u, v, k, ({key: _plain(k)} if key else {}) | attrs(d))
-            for u, v, k, d in graph.edges(keys=True, data=True)
-        )
-    else:
-        copy.add_edges_from((u, v, attrs(d)) for u, v, d in graph.edges(data=True))
-    return copy
-
-
 def _cmd_graph_export(args: argparse.Namespace) -> int:
-    suffix = Path(args.file).suffix.lower()
-    if suffix not in _GRAPH_FORMATS:
-        what = repr(suffix) if suffix else "(no extension)"
-        return _error(
-            f"{args.file}: unsupported graph file format {what}; "
-            "write .graphml (GraphML) or .edgelist (an edge list)"
-        )
-    import networkx as nx
+    from hestore import graphio
 
+    graphio.format_of(args.file)  # before any work: an unknown extension is one line, exit 2
     with _open(args) as store:
         graph = store.mesh(args.name).to_networkx(args.kind)
-    if suffix == ".graphml":
-        copy = _writable_copy(graph, _graphml_value)
-        nx.write_graphml(copy, args.file)
-    else:
-        copy = _writable_copy(graph, _edgelist_value, key="key")
-        nx.write_edgelist(copy, args.file, data=True)
+    nodes, edges = graphio.write_graph(graph, args.file)
     size = os.path.getsize(args.file)
     print(
-        f"wrote the {args.kind} view of {args.name!r} to {args.file} ({_GRAPH_FORMATS[suffix]}): "
-        f"{_count(copy.number_of_nodes(), 'node')}, {_count(copy.number_of_edges(), 'edge')}, {size} bytes"
+        f"wrote the {args.kind} view of {args.name!r} to {args.file} ({graphio.FORMATS[graphio.format_of(args.file)]}): "
+        f"{_count(nodes, 'node')}, {_count(edges, 'edge')}, {size} bytes"
     )
     return 0
 
 
 def _cmd_db_upgrade(args: argparse.Namespace) -> int:
-    url = _url(args)
-    head = migrate.head_revision()
-    engine = _engine(url)
-    try:
-        with engine.connect() as conn:
-            before = migrate.current_revision(conn)
-            if before == head:
-                print(f"{_shown(url)}: already at head ({head})")
-                return 0
-            if before is None and sa.inspect(conn).has_table("meshes"):
-                # Creating the tables would collide with these; which revision
-                # they match is anyone's guess, so leave them to a human.
-                raise SchemaVersionError(
-                    f"{_shown(url)} has a 'meshes' table but no hestore schema version, "
-                    "so it was not created by hestore; refusing to migrate it"
-                )
-            if before is not None and before not in migrate.revisions():
-                raise SchemaVersionError(
-                    f"{_shown(url)} is at schema revision {before}, which hestore "
-                    f"{hestore.__version__} does not know (its head is {head}); "
-                    "it was written by a newer hestore"
-                )
-            migrate.upgrade(conn)
-    finally:
-        engine.dispose()
-    origin = "an empty database" if before is None else before
-    print(f"{_shown(url)}: upgraded from {origin} to {head} (head)")
+    before, after = migrate.upgrade_database(args.db)
+    shown = urls.shown(urls.resolve(args.db))
+    if before.status == "head":
+        print(f"{shown}: already at head ({after.head})")
+    else:
+        origin = "an empty database" if before.current is None else before.current
+        print(f"{shown}: upgraded from {origin} to {after.current} (head)")
     return 0
 
 
 def _cmd_db_current(args: argparse.Namespace) -> int:
-    url = _url(args)
-    head = migrate.head_revision()
-    missing = _sqlite_file_missing(url)
-    if missing is not None:
-        # Connecting would create the file; asking must not change anything.
-        print(f"none (no database at {missing} yet; head is {head})")
-        return 0
-    engine = _engine(url)
-    try:
-        with engine.connect() as conn:
-            current = migrate.current_revision(conn)
-    finally:
-        engine.dispose()
-    if current == head:
-        print(f"{current} (head)")
-    elif current is None:
-        print(f"none (empty database; head is {head}: run `hestore db upgrade`)")
-    elif current in migrate.revisions():
-        print(f"{current} (behind head {head}: run `hestore db upgrade`)")
-    else:
-        print(
-            f"{current} (unknown to hestore {hestore.__version__}, whose head is {head}: "
-            "written by a newer hestore)"
-        )
+    print(migrate.database_state(args.db).describe())
     return 0
 
 
@@ -858,11 +521,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         # --help, --version and usage errors; return rather than exit so that
         # main() behaves the same in-process as from the console script.
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-    url = _url(args)
     try:
         status = args.func(args)
         sys.stdout.flush()
         return status
+    except KeyboardInterrupt:
+        # Every command's writes are one transaction, rolled back on the way out.
+        print("hestore: interrupted; the unfinished command changed nothing", file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # The reader went away (`hestore list | head`): stop quietly with the
         # status of a process killed by SIGPIPE, as other command-line tools do,
@@ -876,26 +542,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         if exc.filename is not None and exc.strerror:
             return _error(f"{os.fsdecode(exc.filename)}: {exc.strerror}")
         return _error(str(exc))
-    except CommandError as exc:
-        return _error(f"cannot migrate {_shown(url)}: {exc}")
-    except sa.exc.OperationalError as exc:
-        cause = exc.orig if exc.orig is not None else exc
-        return _error(f"cannot use the database {_shown(url)}: {cause}")
-    except sa.exc.ArgumentError as exc:
-        return _error(f"invalid database URL {_shown(url)!r}: {exc}")
-    except ModuleNotFoundError as exc:
-        if exc.name not in _DRIVER_EXTRAS:
-            raise
-        return _error(
-            f"the database driver {exc.name!r} for {_shown(url)} is not installed; "
-            f"install it with: pip install '{_DRIVER_EXTRAS[exc.name]}'"
-        )
     except Exception as exc:
+        if os.environ.get(DEBUG_ENVIRONMENT):
+            raise
         # networkx is imported by the graph commands only: look for it, never import it here.
         nx = sys.modules.get("networkx")
         if nx is not None and isinstance(exc, nx.NetworkXException):
             return _error(f"networkx: {exc}")
-        raise
+        return _error(
+            f"unexpected {type(exc).__name__}: {exc} (a bug in hestore; set {DEBUG_ENVIRONMENT}=1 for the traceback)"
+        )
 
 
 if __name__ == "__main__":  # pragma: no cover - `python -m hestore` uses __main__.py

@@ -23,7 +23,9 @@ from typing import Callable, Iterator, Mapping, Sequence
 import numpy as np
 import sqlalchemy as sa
 
-__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy"]
+from hestore import schema
+
+__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request"]
 
 _FETCH_ROWS = 65536
 _WRITE_ROWS = 131072
@@ -40,6 +42,18 @@ def _is_float(column) -> bool:
 
 # --------------------------------------------------------------------------
 # Reading
+
+
+def position_request() -> tuple:
+    """The `read_columns` request for vertex positions: ``id, x, y, z, missing``.
+
+    Coordinates of a vertex without a position read as 0 with ``missing``
+    1; `hestore.arrays.positions` turns the five columns into a ``(V, 3)``
+    array with NaN rows there.
+    """
+    v = schema.vertices
+    missing = sa.case((v.c.x.is_(None) | v.c.y.is_(None) | v.c.z.is_(None), 1), else_=0)
+    return (v, [v.c.id, *(sa.func.coalesce(v.c[k], 0.0) for k in "xyz"), missing])
 
 
 @contextmanager

@@ -1,14 +1,18 @@
-"""Typed errors raised by hestore.
+"""Typed errors raised by hestore, and the records they carry.
 
-Every failure a user can cause has its own class, says which elements are
-involved and why, and leaves the store exactly as it was before the call.
+This module is the leaf of the package: it imports nothing from hestore, so
+every other module can raise these. Every failure a user can cause has its
+own class, says which elements are involved and why, and leaves the store
+exactly as it was before the call. No exception of a database driver leaves a
+public call: database-level problems are `StoreError`, with the driver's
+exception chained as ``__cause__``.
 
 Hierarchy::
 
     HestoreError
     ├── ElementNotFoundError (KeyError)      an id or handle that does not exist here
-    │   └── MeshNotFoundError
-    ├── InvalidInputError (ValueError)       malformed arguments
+    │   └── MeshNotFoundError                no such mesh, or a deleted / rolled-back one
+    ├── InvalidInputError (ValueError)       malformed arguments, files, arrays, names, URLs
     │   └── MeshExistsError
     ├── TopologyError                        a valid request the structure cannot take
     │   ├── NotAChainError
@@ -17,11 +21,19 @@ Hierarchy::
     │   ├── VertexNotFreeError
     │   └── PolicyError                      loop or parallel edge forbidden
     ├── InvariantViolationError              `Mesh.validate` found violations
-    ├── StoreBusyError                       a lock could not be had in time
-    └── SchemaVersionError                   the database needs ``hestore db upgrade``
+    ├── StoreError                           the database itself: unreadable, read-only, ...
+    │   ├── StoreBusyError                   a lock could not be had in time
+    │   └── SchemaVersionError               the database needs ``hestore db upgrade``
+    └── WrongThreadError                     a store used from a thread that did not open it
+
+`Violation`, the record `Mesh.check` returns and `InvariantViolationError`
+carries, lives here too, so that errors depend on nothing else.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
 
 __all__ = [
     "HestoreError",
@@ -36,8 +48,11 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "InvariantViolationError",
+    "StoreError",
     "StoreBusyError",
     "SchemaVersionError",
+    "WrongThreadError",
+    "Violation",
 ]
 
 
@@ -58,11 +73,26 @@ class ElementNotFoundError(HestoreError, KeyError):
 
 
 class MeshNotFoundError(ElementNotFoundError):
-    """No mesh of that name exists in the store."""
+    """No mesh of that name exists in the store, or the mesh is gone.
+
+    A `Mesh` handle raises it once its mesh has been deleted, and once the
+    transaction that created it has been rolled back (its id may then belong
+    to another mesh, which the handle never touches).
+    """
 
 
 class InvalidInputError(HestoreError, ValueError):
-    """Arguments are malformed (wrong type, empty loop, NaN position, ...)."""
+    """Arguments are malformed: wrong type, empty loop, NaN position, bad file, bad URL.
+
+    Attributes
+    ----------
+    skipped : hestore.SkippedPolygon or None
+        For an import with ``on_error="raise"`` refused because of one
+        polygon (an index out of range, an empty polygon): that polygon.
+        None otherwise.
+    """
+
+    skipped: Any = None
 
 
 class MeshExistsError(InvalidInputError):
@@ -72,15 +102,41 @@ class MeshExistsError(InvalidInputError):
 class TopologyError(HestoreError):
     """A well-formed request that the half-edge structure cannot take.
 
+    Parameters
+    ----------
+    message : str
+        What was refused and why, naming the elements.
+    refs : sequence of (str, int), optional
+        The elements the refusal is about, most relevant first, as
+        ``(kind, id)`` pairs (kind ``"vertex"``, ``"halfedge"``, ``"edge"``
+        or ``"polygon"``).
+
     Attributes
     ----------
-    elements : tuple
-        The handles the refusal is about, most relevant first.
+    elements : tuple of handles
+        The elements of `refs` as `Vertex`, `HalfEdge`, `Edge` and `Polygon`
+        handles of the mesh the operation ran on. Every error raised by a
+        `Mesh` method has them; an error raised by an import (where nothing
+        was stored, so there are no handles) has none.
+    refs : tuple of (str, int)
+        The same elements as ``(kind, id)`` pairs.
+    skipped : hestore.SkippedPolygon or None
+        For an import with ``on_error="raise"``: the polygon that was
+        refused. None otherwise.
+
+    Examples
+    --------
+    >>> exc = TopologyError("vertex 3 is not free", refs=[("vertex", 3)])
+    >>> exc.refs, exc.elements, str(exc)
+    ((('vertex', 3),), (), 'vertex 3 is not free')
     """
 
-    def __init__(self, message: str, elements: tuple = ()) -> None:
+    skipped: Any = None
+
+    def __init__(self, message: str, refs: Any = ()) -> None:
         super().__init__(message)
-        self.elements = tuple(elements)
+        self.refs: tuple[tuple[str, int], ...] = tuple((str(kind), int(i)) for kind, i in refs)
+        self.elements: tuple = ()
 
 
 class NotAChainError(TopologyError):
@@ -103,13 +159,56 @@ class PolicyError(TopologyError):
     """The mesh's policy forbids self-loops or parallel edges."""
 
 
+@dataclass(frozen=True)
+class Violation:
+    """One broken invariant, about one element.
+
+    Parameters
+    ----------
+    code : str
+        The invariant's code, one of `hestore.validation.CODES`.
+    kind : str
+        The kind of the offending element: ``"halfedge"``, ``"vertex"``,
+        ``"edge"`` or ``"polygon"``.
+    ids : tuple of int
+        The ids involved, the offending element's first; the others are the
+        elements (of any kind, see `message`) the reason refers to.
+    message : str
+        The reason, naming the elements involved.
+
+    Examples
+    --------
+    >>> v = Violation("H_TWIN", "halfedge", (12, 40, 41), "twin(twin(12)) = 41 (twin(12) = 40), expected 12")
+    >>> str(v)
+    'H_TWIN halfedge 12: twin(twin(12)) = 41 (twin(12) = 40), expected 12'
+    >>> v.id
+    12
+    """
+
+    code: str
+    kind: str
+    ids: tuple[int, ...]
+    message: str
+
+    @property
+    def id(self) -> int:
+        """The id of the offending element (``ids[0]``)."""
+        return self.ids[0]
+
+    def __str__(self) -> str:
+        return f"{self.code} {self.kind} {self.ids[0]}: {self.message}"
+
+
 class InvariantViolationError(HestoreError):
-    """`Mesh.validate` found stored data that breaks an invariant.
+    """Stored data breaks an invariant: `Mesh.validate` found violations.
+
+    Also raised when an operation or a read meets a broken structure
+    (a rotation that does not close, a dangling reference) on its way.
 
     Attributes
     ----------
     violations : list of Violation
-        What `Mesh.check` reported.
+        What was found (for `Mesh.validate`: what `Mesh.check` reported).
     """
 
     def __init__(self, violations: list) -> None:
@@ -120,7 +219,16 @@ class InvariantViolationError(HestoreError):
         super().__init__(f"{len(self.violations)} invariant violation(s): {head}{tail}")
 
 
-class StoreBusyError(HestoreError):
+class StoreError(HestoreError):
+    """The database could not do what was asked: a problem of the store, not of the input.
+
+    A file that is not a database, a read-only database, tables of another
+    application in the way, a lost connection. The driver's own exception is
+    chained as ``__cause__``. The call that raised it changed nothing.
+    """
+
+
+class StoreBusyError(StoreError):
     """Another writer held the lock longer than the store's busy timeout.
 
     The call that raised it changed nothing. Outside a transaction block it is
@@ -129,5 +237,13 @@ class StoreBusyError(HestoreError):
     """
 
 
-class SchemaVersionError(HestoreError):
+class SchemaVersionError(StoreError):
     """The database schema is older (or newer) than this version of hestore."""
+
+
+class WrongThreadError(HestoreError):
+    """A `Store` (or one of its meshes or handles) was used from another thread.
+
+    A store belongs to the thread that opened it; the call was refused before
+    it touched the connection. Open one store per thread.
+    """

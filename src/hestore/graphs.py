@@ -31,7 +31,6 @@ two such algorithms). The figures are in ``docs/analysis.md``.
 from __future__ import annotations
 
 import gc
-import weakref
 from contextlib import contextmanager
 from itertools import compress, islice
 from typing import TYPE_CHECKING, Callable, Iterator
@@ -41,8 +40,9 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.columns import read_snapshot, read_columns
-from hestore.errors import InvalidInputError, InvariantViolationError
+from hestore.arrays import Index, run_starts
+from hestore.columns import position_request
+from hestore.errors import InvalidInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -52,9 +52,8 @@ __all__ = ["KINDS", "to_networkx"]
 #: The graph kinds `to_networkx` makes, the default first.
 KINDS = ("multigraph", "graph", "halfedge", "dual")
 
-# store -> {(mesh id, kind): (revision, graph)}. Weak, so that a graph lives
-# no longer than the store it came from.
-_cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: The key of the graphs in `hestore.session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``.
+CACHE = "graphs"
 
 
 def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
@@ -161,41 +160,26 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
     """
     if kind not in KINDS:
         raise InvalidInputError(f"unknown graph kind {kind!r}; the kinds are {', '.join(map(repr, KINDS))}")
-    store = mesh._store
-    m = schema.meshes
-    with store._committed() as conn:
-        # Only an in-memory SQLite store inside a block reads through its own
+    with mesh.session.snapshot(mesh.ref, committed=True) as snap:
+        # Only an in-memory SQLite store inside a block reads its own
         # connection there, and so sees uncommitted edits: a graph of those
         # must not be cached under a revision number a rollback may reuse.
-        cacheable = not store.in_transaction or conn is not store._conn
-        per_store = _cache.setdefault(store, {}) if cacheable else {}
-        with read_snapshot(conn):
-            revision = conn.execute(sa.select(m.c.revision).where(m.c.id == mesh._id)).scalar()
-            if revision is None:
-                for k in KINDS:
-                    per_store.pop((mesh._id, k), None)
-                raise mesh._deleted()
-            hit = per_store.get((mesh._id, kind))
-            if hit is not None and hit[0] == revision:
-                return hit[1]
-            columns = read_columns(conn, mesh._id, _REQUESTS[kind]())
+        cache = mesh.session.caches.setdefault(CACHE, {}) if snap.isolated else {}
+        revision = snap.revision
+        hit = cache.get((mesh.id, kind))
+        if hit is not None and hit[0] == revision:
+            return hit[1]
+        columns = snap.columns(_REQUESTS[kind]())
     with _gc_paused():
         G = _BUILDERS[kind](*columns)
     G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
     nx.freeze(G)
-    if cacheable:
-        per_store[(mesh._id, kind)] = (revision, G)
+    cache[(mesh.id, kind)] = (revision, G)
     return G
 
 
 # --------------------------------------------------------------------------
 # What each kind reads
-
-
-def _vertex_columns() -> tuple:
-    v = schema.vertices
-    unplaced = sa.case((v.c.x.is_(None) | v.c.y.is_(None) | v.c.z.is_(None), 1), else_=0)
-    return (v, [v.c.id, *(sa.func.coalesce(v.c[k], 0.0) for k in "xyz"), unplaced])
 
 
 def _halfedge_columns(*names: str) -> tuple:
@@ -214,9 +198,9 @@ def _polygon_columns() -> tuple:
 
 
 _REQUESTS: dict[str, Callable[[], list]] = {
-    "multigraph": lambda: [_vertex_columns(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
-    "graph": lambda: [_vertex_columns(), _halfedge_columns("origin", "twin"), _edge_columns()],
-    "halfedge": lambda: [_vertex_columns(), _halfedge_columns("origin", "twin", "edge", "polygon")],
+    "multigraph": lambda: [position_request(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
+    "graph": lambda: [position_request(), _halfedge_columns("origin", "twin"), _edge_columns()],
+    "halfedge": lambda: [position_request(), _halfedge_columns("origin", "twin", "edge", "polygon")],
     "dual": lambda: [_polygon_columns(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
 }
 
@@ -241,21 +225,7 @@ def _gc_paused() -> Iterator[None]:
 
 def _rows(ids: np.ndarray, refs: np.ndarray, kind: str, owners: np.ndarray, owner_kind: str, column: str) -> np.ndarray:
     """Row of each of ``refs`` in the sorted ``ids``; one that is not there is a ``REF`` violation."""
-    rows = np.searchsorted(ids, refs)
-    bad = rows >= len(ids)
-    rows[bad] = 0
-    if len(ids):
-        bad |= ids[rows] != refs
-    if bad.any():
-        from hestore.validation import Violation
-
-        raise InvariantViolationError(
-            [
-                Violation("REF", owner_kind, (o, r), f"{column} = {r}, but there is no {kind} {r}")
-                for o, r in zip(owners[bad][:5].tolist(), refs[bad][:5].tolist())
-            ]
-        )
-    return rows
+    return Index(ids).rows(refs, kind=kind, owners=owners, owner_kind=owner_kind, column=column)
 
 
 def _or_none(values: np.ndarray) -> list:
@@ -277,9 +247,7 @@ def _groups(a: np.ndarray, b: np.ndarray, keys: np.ndarray):
     """Sort edges ``a → b`` by ``(a, b, key)``; return the order, the sorted columns and where each ``(a, b)`` run starts."""
     order = np.lexsort((keys, b, a))
     a, b, keys = a[order], b[order], keys[order]
-    first = np.ones(len(a), dtype=bool)
-    first[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    return order, a, b, keys, first
+    return order, a, b, keys, run_starts(a, b)
 
 
 def _keydicts(keys: list, data: list, first: np.ndarray) -> list[dict]:

@@ -4,7 +4,7 @@ A handle is a mesh and an id, nothing more. Handles are equal when mesh and
 id are equal, hashable, and stay valid across transactions because ids are
 never reused; a handle whose element was removed raises
 `ElementNotFoundError` when used. Every property and method delegates to a
-free function of `hestore.navigation`.
+free function of `hestore.navigation` and wraps the ids it returns.
 
 The seeds' alternative vocabularies are aliases of the primary names, listed
 in each class's docstring: ``lnext``/``lprev``/``sym``/``org``/``dest``
@@ -13,25 +13,65 @@ in each class's docstring: ``lnext``/``lprev``/``sym``/``org``/``dest``
 
 from __future__ import annotations
 
+import operator
 from typing import TYPE_CHECKING
 
 from hestore import navigation as nav
+from hestore.errors import ElementNotFoundError, InvalidInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon"]
+__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "element_id"]
+
+_ID_MIN, _ID_MAX = -(2**63), 2**63 - 1
+_set = object.__setattr__
 
 
-class _Handle:
+def element_id(value: object, what: str = "element") -> int:
+    """``value`` as an element id: an integer (a numpy one too), never a bool, a float or a string.
+
+    Raises
+    ------
+    InvalidInputError
+        ``value`` is not an integer.
+    ElementNotFoundError
+        It is outside the 64-bit range ids are stored in, so no element has it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> element_id(np.int64(7)), element_id(3)
+    (7, 3)
+    >>> element_id(2**70, "vertex")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.ElementNotFoundError: there is no vertex 1180591620717411303424: ids are 64-bit integers
+    """
+    if isinstance(value, bool):
+        raise InvalidInputError(f"{what} ids are integers, not {value!r}")
+    try:
+        i = operator.index(value)
+    except TypeError:
+        raise InvalidInputError(f"{what} ids are integers, not {type(value).__name__} {value!r}") from None
+    if not _ID_MIN <= i <= _ID_MAX:
+        raise ElementNotFoundError(f"there is no {what} {i}: ids are 64-bit integers")
+    return i
+
+
+class Handle:
+    """Base of the element handles: a mesh and an id, immutable."""
+
     __slots__ = ("mesh", "id")
 
     mesh: "Mesh"
     id: int
 
     def __init__(self, mesh: "Mesh", id: int) -> None:
-        object.__setattr__(self, "mesh", mesh)
-        object.__setattr__(self, "id", int(id))
+        if type(id) is not int or not _ID_MIN <= id <= _ID_MAX:
+            id = element_id(id, type(self).__name__.lower())
+        _set(self, "mesh", mesh)
+        _set(self, "id", id)
 
     def __setattr__(self, name, value):
         raise AttributeError(f"{type(self).__name__} handles are immutable")
@@ -52,7 +92,7 @@ class _Handle:
         raise TypeError(f"{type(self).__name__} handles are bound to an open store; pickle .id instead")
 
 
-class Vertex(_Handle):
+class Vertex(Handle):
     """A vertex of a mesh.
 
     Examples
@@ -70,50 +110,57 @@ class Vertex(_Handle):
     @property
     def halfedge(self) -> "HalfEdge | None":
         """An outgoing half-edge, a free one if there is any; ``None`` if isolated."""
-        return nav.vertex_halfedge(self)
+        h = nav.vertex_row(self.mesh, self.id)[0]
+        return None if h is None else HalfEdge(self.mesh, h)
 
     @property
     def position(self) -> tuple[float, float, float] | None:
         """``(x, y, z)``, or ``None``."""
-        return nav.position(self)
+        row = nav.vertex_row(self.mesh, self.id)
+        return None if row[1] is None else (row[1], row[2], row[3])
 
     @property
     def degree(self) -> int:
         """Number of outgoing half-edges (a self-loop counts twice)."""
-        return nav.degree(self)
+        return len(nav.star(self.mesh, self.id))
 
     @property
     def is_isolated(self) -> bool:
         """Whether no edge touches this vertex."""
-        return nav.is_isolated(self)
+        return nav.vertex_row(self.mesh, self.id)[0] is None
 
     @property
     def is_boundary(self) -> bool:
         """Whether a free half-edge leaves this vertex (or it is isolated)."""
-        return nav.is_boundary_vertex(self)
+        return nav.is_boundary_vertex(self.mesh, self.id)
 
     def outgoing(self) -> list["HalfEdge"]:
         """Outgoing half-edges, counter-clockwise from `halfedge`."""
-        return nav.outgoing(self)
+        m = self.mesh
+        return [HalfEdge(m, r[0]) for r in nav.star(m, self.id)]
 
     def incoming(self) -> list["HalfEdge"]:
         """Incoming half-edges (twins of `outgoing`, same order)."""
-        return nav.incoming(self)
+        m = self.mesh
+        return [HalfEdge(m, r[2]) for r in nav.star(m, self.id)]
 
     def neighbors(self) -> list["Vertex"]:
         """One neighbour per outgoing half-edge: repeats for parallel edges, self for a loop."""
-        return nav.neighbors(self)
+        m = self.mesh
+        return [Vertex(m, r[5]) for r in nav.star(m, self.id)]
 
     def edges(self) -> list["Edge"]:
         """One edge per outgoing half-edge (a self-loop twice)."""
-        return nav.vertex_edges(self)
+        m = self.mesh
+        return [Edge(m, r[3]) for r in nav.star(m, self.id)]
 
     def polygons(self) -> list["Polygon"]:
         """Polygons around the vertex, counter-clockwise, free gaps skipped."""
-        return nav.vertex_polygons(self)
+        m = self.mesh
+        return [Polygon(m, r[4]) for r in nav.star(m, self.id) if r[4] is not None]
 
 
-class HalfEdge(_Handle):
+class HalfEdge(Handle):
     """A directed half of an edge; its polygon lies to its left.
 
     Aliases: ``lnext``/``lprev`` = `next`/`prev`; ``sym``, ``pair``,
@@ -133,85 +180,89 @@ class HalfEdge(_Handle):
 
     __slots__ = ()
 
+    def _record(self) -> tuple:
+        return nav.halfedge_record(self.mesh, self.id)
+
     @property
     def next(self) -> "HalfEdge":
         """Next half-edge around the left polygon (or boundary loop)."""
-        return nav.next_halfedge(self)
+        return HalfEdge(self.mesh, self._record()[1])
 
     @property
     def prev(self) -> "HalfEdge":
         """Previous half-edge around the left polygon (or boundary loop)."""
-        return nav.prev_halfedge(self)
+        return HalfEdge(self.mesh, self._record()[2])
 
     @property
     def twin(self) -> "HalfEdge":
         """The opposite half-edge."""
-        return nav.twin(self)
+        return HalfEdge(self.mesh, self._record()[3])
 
     @property
     def origin(self) -> Vertex:
         """Start vertex."""
-        return nav.origin(self)
+        return Vertex(self.mesh, self._record()[0])
 
     @property
     def target(self) -> Vertex:
         """End vertex."""
-        return nav.target(self)
+        return Vertex(self.mesh, self._record()[6])
 
     @property
     def polygon(self) -> "Polygon | None":
         """Left polygon, ``None`` if free."""
-        return nav.polygon(self)
+        p = self._record()[5]
+        return None if p is None else Polygon(self.mesh, p)
 
     @property
     def edge(self) -> "Edge":
         """The edge this is half of."""
-        return nav.edge(self)
+        return Edge(self.mesh, self._record()[4])
 
     @property
     def is_boundary(self) -> bool:
         """Whether this half-edge is free (no polygon)."""
-        return nav.is_boundary_halfedge(self)
+        return self._record()[5] is None
 
     @property
     def onext(self) -> "HalfEdge":
         """``prev.twin``: next outgoing half-edge counter-clockwise around the origin."""
-        return nav.onext(self)
+        return self.prev.twin
 
     @property
     def oprev(self) -> "HalfEdge":
         """``twin.next``: next outgoing half-edge clockwise around the origin."""
-        return nav.oprev(self)
+        return self.twin.next
 
     @property
     def dnext(self) -> "HalfEdge":
         """``twin.prev``: around the destination."""
-        return nav.dnext(self)
+        return self.twin.prev
 
     @property
     def dprev(self) -> "HalfEdge":
         """``next.twin``: around the destination."""
-        return nav.dprev(self)
+        return self.next.twin
 
     @property
     def rnext(self) -> "HalfEdge":
         """``twin.next.twin``: around the right polygon."""
-        return nav.rnext(self)
+        return self.twin.next.twin
 
     @property
     def rprev(self) -> "HalfEdge":
         """``twin.prev.twin``: around the right polygon."""
-        return nav.rprev(self)
+        return self.twin.prev.twin
 
     @property
     def vector(self) -> tuple[float, float, float] | None:
         """``target.position - origin.position``; ``None`` without positions."""
-        return nav.vector(self)
+        return nav.vector(self.mesh, self.id)
 
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self)
+        return nav.length(self.mesh, self.id)
 
     # Guibas–Stolfi and other vocabularies (SPEC §3).
     lnext = next
@@ -223,7 +274,7 @@ class HalfEdge(_Handle):
     is_border = is_boundary
 
 
-class Edge(_Handle):
+class Edge(Handle):
     """An undirected edge: a pair of twin half-edges.
 
     Examples
@@ -238,40 +289,48 @@ class Edge(_Handle):
 
     __slots__ = ()
 
+    def _row(self) -> tuple:
+        return nav.edge_row(self.mesh, self.id)
+
     @property
     def halfedge(self) -> HalfEdge:
         """One of the two half-edges (the one from the first vertex given to ``add_edge``)."""
-        return nav.edge_halfedge(self)
+        return HalfEdge(self.mesh, self._row()[0])
 
     @property
     def is_boundary(self) -> bool:
         """Whether at least one side is free."""
-        return nav.is_boundary_edge(self)
+        row = self._row()
+        return row[4] is None or row[5] is None
 
     @property
     def is_loop(self) -> bool:
         """Whether both ends are the same vertex."""
-        return nav.is_loop(self)
+        row = self._row()
+        return row[2] == row[3]
 
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self.halfedge)
+        return nav.length(self.mesh, self._row()[0])
 
     def halfedges(self) -> tuple[HalfEdge, HalfEdge]:
         """``(halfedge, halfedge.twin)``."""
-        return nav.edge_halfedges(self)
+        row = self._row()
+        return HalfEdge(self.mesh, row[0]), HalfEdge(self.mesh, row[1])
 
     def vertices(self) -> tuple[Vertex, Vertex]:
         """``(halfedge.origin, halfedge.target)``."""
-        return nav.edge_vertices(self)
+        row = self._row()
+        return Vertex(self.mesh, row[2]), Vertex(self.mesh, row[3])
 
     def polygons(self) -> list["Polygon"]:
         """Polygons on its two sides, free sides skipped."""
-        return nav.edge_polygons(self)
+        row = self._row()
+        return [Polygon(self.mesh, p) for p in (row[4], row[5]) if p is not None]
 
 
-class Polygon(_Handle):
+class Polygon(Handle):
     """A polygon (face): a loop of half-edges, counter-clockwise.
 
     Alias: ``face``.
@@ -291,25 +350,29 @@ class Polygon(_Handle):
     @property
     def halfedge(self) -> HalfEdge:
         """One half-edge of its loop."""
-        return nav.polygon_halfedge(self)
+        return HalfEdge(self.mesh, nav.polygon_halfedge(self.mesh, self.id))
 
     @property
     def degree(self) -> int:
         """Number of half-edges (corners)."""
-        return nav.polygon_degree(self)
+        return len(nav.ring(self.mesh, self.id))
 
     def halfedges(self) -> list[HalfEdge]:
         """Its half-edges in ``next`` order from `halfedge`."""
-        return nav.polygon_halfedges(self)
+        m = self.mesh
+        return [HalfEdge(m, r[0]) for r in nav.ring(m, self.id)]
 
     def vertices(self) -> list[Vertex]:
         """Its corners, counter-clockwise."""
-        return nav.polygon_vertices(self)
+        m = self.mesh
+        return [Vertex(m, r[2]) for r in nav.ring(m, self.id)]
 
     def edges(self) -> list[Edge]:
         """Its edges, in order."""
-        return nav.polygon_edges(self)
+        m = self.mesh
+        return [Edge(m, r[3]) for r in nav.ring(m, self.id)]
 
     def neighbors(self) -> list["Polygon"]:
-        """Polygons across its edges (``None`` sides skipped)."""
-        return nav.polygon_neighbors(self)
+        """Polygons across its edges (``None`` sides skipped; itself where it meets itself)."""
+        m = self.mesh
+        return [Polygon(m, r[4]) for r in nav.ring(m, self.id) if r[4] is not None]

@@ -17,8 +17,8 @@ when it is isolated or has a free outgoing half-edge. ``rotate_cw(h) =
 next(twin(h))`` steps to the next outgoing half-edge around ``origin(h)``
 (the seed's ``vertexNext``); ``rotate_ccw(h) = twin(prev(h))`` steps back.
 
-Errors carry ``elements`` as ``(kind, id)`` pairs; `hestore.mesh` turns them
-into handles.
+Errors carry ``refs``, ``(kind, id)`` pairs; `hestore.mesh` turns them into
+handles (``elements``).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def find_free_incident(uow: UnitOfWork, start: int, stop: int, exclude: frozense
         if uow.he(h)[POLYGON] is None and h not in exclude:
             return h
         h = uow.he(uow.he(h)[NEXT])[TWIN]
-    raise uow.corrupt("V_ROTATION", f"the incoming half-edges around half-edge {start} do not close")
+    raise uow.corrupt("V_ROTATION", "halfedge", start, f"the incoming half-edges around half-edge {start} do not close")
 
 
 def make_adjacent(uow: UnitOfWork, h_in: int, h_out: int, loop: frozenset = frozenset()) -> bool:
@@ -123,7 +123,7 @@ def _first_free_outgoing(uow: UnitOfWork, v: int) -> int | None:
         h = uow.he(uow.he(h)[TWIN])[NEXT]
         if h == start:
             return None
-    raise uow.corrupt("V_ROTATION", f"the rotation around vertex {v} does not close")
+    raise uow.corrupt("V_ROTATION", "vertex", v, f"the rotation around vertex {v} does not close")
 
 
 def _adjust_outgoing(uow: UnitOfWork, v: int) -> None:
@@ -200,7 +200,7 @@ def _check_loop(uow: UnitOfWork, loop: Sequence[int]) -> None:
     for h in loop:
         uow.he(h)
         if h in seen:
-            raise InvalidInputError(f"half-edge {h} appears twice in the loop", (("halfedge", h),))
+            raise InvalidInputError(f"half-edge {h} appears twice in the loop")
         seen.add(h)
     uow.load(stars=[uow.he(h)[ORIGIN] for h in loop])
     n = len(loop)
@@ -264,7 +264,7 @@ def _fans(uow: UnitOfWork, v: int) -> list[list[int]]:
     while h != start:
         rotation.append(h)
         if len(rotation) > len(uow.outgoing(v)):
-            raise uow.corrupt("V_ROTATION", f"the rotation around vertex {v} does not close")
+            raise uow.corrupt("V_ROTATION", "vertex", v, f"the rotation around vertex {v} does not close")
         h = uow.he(uow.he(h)[TWIN])[NEXT]
     free = [uow.he(uow.he(o)[TWIN])[POLYGON] is None for o in rotation]  # the wedge after o
     if not any(free):
@@ -392,8 +392,8 @@ def _polygon_loop(uow: UnitOfWork, p: int) -> list[int]:
     h = uow.he(start)[NEXT]
     while h != start:
         loop.append(h)
-        if len(loop) > len(uow._he):  # more steps than rows: the loop is broken
-            raise uow.corrupt("P_LOOP", f"the half-edges of polygon {p} do not close into a loop")
+        if len(loop) > uow.cached_halfedges:  # more steps than rows: the loop is broken
+            raise uow.corrupt("P_LOOP", "polygon", p, f"the half-edges of polygon {p} do not close into a loop")
         h = uow.he(h)[NEXT]
     return loop
 

@@ -1,33 +1,41 @@
 """The `Mesh` facade: one named half-edge structure in a store.
 
-`Mesh` checks its arguments (types, ownership of handles, positions), then
-delegates: edits to `hestore.kernel` inside the store's atomic edit scope,
-reads to `hestore.navigation`, checks to `hestore.validation`. It holds no
-state of its own beyond its identity and policy.
+This module owns `Mesh`, the object users hold: it checks its arguments
+(types, ownership of handles, positions), then delegates — edits to
+`hestore.kernel` inside the session's atomic edit scope, reads to
+`hestore.navigation`, summaries to `hestore.summary`, checks to
+`hestore.validation`, bulk export to `hestore.bulk`, graph views to
+`hestore.graphs` — and turns the ``(kind, id)`` pairs of a refused
+operation's `TopologyError` into handles. It holds no state beyond its
+identity (`hestore.session.MeshRef`) and policy.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import kernel, navigation, schema
+from hestore import bulk, kernel, navigation, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
     InvariantViolationError,
-    MeshNotFoundError,
     TopologyError,
+    Violation,
 )
-from hestore.handles import Edge, HalfEdge, Polygon, Vertex, _Handle
+from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id
+from hestore.session import MeshRef
+from hestore.unitofwork import UnitOfWork
 
 if TYPE_CHECKING:  # pragma: no cover
+    import networkx as nx
+
     from hestore.store import Store
-    from hestore.summary import Stats
-    from hestore.validation import Violation
 
 __all__ = ["Mesh", "Counts"]
 
@@ -44,11 +52,41 @@ class Counts:
     polygons: int
 
 
+def _build_revision():
+    m = schema.meshes
+    return sa.select(m.c.revision).where(m.c.id == sa.bindparam("m"))
+
+
+def _build_counts():
+    def count(t: sa.Table):
+        return sa.select(sa.func.count()).select_from(t).where(t.c.mesh_id == sa.bindparam("m")).scalar_subquery()
+
+    m = schema.meshes
+    return sa.select(
+        sa.select(m.c.id).where(m.c.id == sa.bindparam("m")).scalar_subquery(),
+        count(schema.vertices),
+        count(schema.halfedges),
+        count(schema.edges),
+        count(schema.polygons),
+    )
+
+
 class Mesh:
     """A named mesh in a `Store`: create it with `Store.create_mesh`.
 
     Every editing method is atomic: it succeeds completely or raises and
     changes nothing (inside a transaction block too, which may go on).
+
+    Attributes
+    ----------
+    store : Store
+        The store the mesh lives in.
+    session : hestore.session.Session
+        The store's session (the door every read and write goes through).
+    ref : hestore.session.MeshRef
+        The mesh's identity in that session.
+    allow_loops, allow_multi_edges : bool
+        The mesh's policy.
 
     Examples
     --------
@@ -64,28 +102,33 @@ class Mesh:
     (False, 4)
     """
 
-    __slots__ = ("_store", "_id", "name", "allow_loops", "allow_multi_edges")
+    __slots__ = ("store", "session", "ref", "allow_loops", "allow_multi_edges")
 
-    def __init__(self, store: "Store", mesh_id: int, name: str, allow_loops: bool, allow_multi_edges: bool) -> None:
-        self._store = store
-        self._id = mesh_id
-        self.name = name
+    def __init__(self, store: "Store", ref: MeshRef, allow_loops: bool, allow_multi_edges: bool) -> None:
+        self.store = store
+        self.session = store.session
+        self.ref = ref
         self.allow_loops = allow_loops
         self.allow_multi_edges = allow_multi_edges
+
+    @property
+    def id(self) -> int:
+        """The mesh's id in its store's ``meshes`` table (the ``mesh_id`` of its rows)."""
+        return self.ref.id
+
+    @property
+    def name(self) -> str:
+        """The mesh's name."""
+        return self.ref.name
 
     def __repr__(self) -> str:
         return f"Mesh({self.name!r})"
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Mesh) and other._store is self._store and other._id == self._id
+        return isinstance(other, Mesh) and other.ref is self.ref
 
     def __hash__(self) -> int:
-        return hash((id(self._store), self._id))
-
-    @property
-    def store(self) -> "Store":
-        """The store the mesh lives in."""
-        return self._store
+        return hash(self.ref)
 
     # -- argument checking --------------------------------------------------
 
@@ -100,21 +143,28 @@ class Mesh:
             )
         return handle.id
 
-    def _handles(self, exc: TopologyError) -> TopologyError:
-        exc.elements = tuple(_KIND_OF[kind](self, i) for kind, i in exc.elements if kind in _KIND_OF)
-        return exc
+    @contextmanager
+    def _edit(self, *, dry_run: bool = False) -> Iterator[UnitOfWork]:
+        """The session's edit scope (or dry run), with a refusal's elements as handles of this mesh."""
+        try:
+            with (self.session.dry_run if dry_run else self.session.editing)(self.ref) as uow:
+                yield uow
+        except TopologyError as exc:
+            exc.elements = tuple(_KIND_OF[kind](self, i) for kind, i in exc.refs if kind in _KIND_OF)
+            raise
+
+    def _fetch(self, key: str, build, **values) -> list[tuple]:
+        return self.session.fetch(self.ref, key, build, values)
 
     # -- summaries ----------------------------------------------------------
 
     @property
     def revision(self) -> int:
         """Number of committed transactions that changed the mesh (plus the open one's, if it did)."""
-        m = schema.meshes
-        with self._store._read() as conn:
-            rev = conn.execute(sa.select(m.c.revision).where(m.c.id == self._id)).scalar()
-        if rev is None:
-            raise self._deleted()
-        return rev
+        rows = self._fetch("mesh_revision", _build_revision)
+        if not rows:
+            raise self.session.missing(self.ref)
+        return rows[0][0]
 
     def counts(self) -> Counts:
         """Number of vertices, half-edges, edges and polygons.
@@ -126,80 +176,74 @@ class Mesh:
         >>> mesh.counts()
         Counts(vertices=0, halfedges=0, edges=0, polygons=0)
         """
-
-        def count(t: sa.Table):
-            return sa.select(sa.func.count()).select_from(t).where(t.c.mesh_id == self._id).scalar_subquery()
-
-        m = schema.meshes
-        stmt = sa.select(
-            sa.select(m.c.id).where(m.c.id == self._id).scalar_subquery(),
-            count(schema.vertices),
-            count(schema.halfedges),
-            count(schema.edges),
-            count(schema.polygons),
-        )
-        with self._store._read() as conn:
-            exists, *counts = conn.execute(stmt).one()
+        exists, *counts = self._fetch("mesh_counts", _build_counts)[0]
         if exists is None:
-            raise self._deleted()
+            raise self.session.missing(self.ref)
         return Counts(*counts)
 
-    def _deleted(self) -> MeshNotFoundError:
-        return MeshNotFoundError(f"mesh {self.name!r} has been deleted")
+    def stats(self) -> summary.Stats:
+        """Counts and topological invariants of the mesh; see `hestore.summary.stats`."""
+        return summary.stats(self)
+
+    def boundary_loops(self) -> list[list[HalfEdge]]:
+        """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
+        return summary.boundary_loops(self)
+
+    def components(self) -> list[set[Vertex]]:
+        """Connected components of the vertex–edge graph; see `hestore.summary.components`."""
+        return summary.components(self)
 
     # -- lookup and iteration -----------------------------------------------
 
-    def _lookup(self, table: sa.Table, kind: type, what: str, i: int):
-        if isinstance(i, bool) or not isinstance(i, int):
-            raise InvalidInputError(f"{what} ids are integers, not {i!r}")
-        with self._store._read() as conn:
-            row = conn.execute(
-                sa.select(table.c.id).where(table.c.mesh_id == self._id, table.c.id == i)
-            ).first()
-        if row is None:
-            raise ElementNotFoundError(f"{what} {i} does not exist in mesh {self.name!r}")
+    def _lookup(self, kind: type, what: str, i: object) -> Handle:
+        i = element_id(i, what)
+        navigation.exists(self, what, i)
         return kind(self, i)
 
     def vertex(self, id: int) -> Vertex:
-        """The vertex with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(schema.vertices, Vertex, "vertex", id)
+        """The vertex with this id (`ElementNotFoundError` if there is none).
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> v = mesh.add_vertex()
+        >>> mesh.vertex(0) == v
+        True
+        >>> mesh.vertex(1)
+        Traceback (most recent call last):
+        ...
+        hestore.errors.ElementNotFoundError: vertex 1 does not exist in mesh 'm' (removed, or never created)
+        """
+        return self._lookup(Vertex, "vertex", id)
 
     def halfedge(self, id: int) -> HalfEdge:
         """The half-edge with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(schema.halfedges, HalfEdge, "half-edge", id)
+        return self._lookup(HalfEdge, "half-edge", id)
 
     def edge(self, id: int) -> Edge:
         """The edge with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(schema.edges, Edge, "edge", id)
+        return self._lookup(Edge, "edge", id)
 
     def polygon(self, id: int) -> Polygon:
         """The polygon with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(schema.polygons, Polygon, "polygon", id)
-
-    def _ids(self, table: sa.Table) -> list[int]:
-        m = schema.meshes
-        with self._store._read() as conn:
-            if conn.execute(sa.select(m.c.id).where(m.c.id == self._id)).first() is None:
-                raise self._deleted()
-            return list(
-                conn.execute(sa.select(table.c.id).where(table.c.mesh_id == self._id).order_by(table.c.id)).scalars()
-            )
+        return self._lookup(Polygon, "polygon", id)
 
     def vertices(self) -> Iterator[Vertex]:
         """All vertices, in id order."""
-        return (Vertex(self, i) for i in self._ids(schema.vertices))
+        return (Vertex(self, i) for i in navigation.ids(self, "vertex"))
 
     def halfedges(self) -> Iterator[HalfEdge]:
         """All half-edges, in id order."""
-        return (HalfEdge(self, i) for i in self._ids(schema.halfedges))
+        return (HalfEdge(self, i) for i in navigation.ids(self, "half-edge"))
 
     def edges(self) -> Iterator[Edge]:
         """All edges, in id order."""
-        return (Edge(self, i) for i in self._ids(schema.edges))
+        return (Edge(self, i) for i in navigation.ids(self, "edge"))
 
     def polygons(self) -> Iterator[Polygon]:
         """All polygons, in id order."""
-        return (Polygon(self, i) for i in self._ids(schema.polygons))
+        return (Polygon(self, i) for i in navigation.ids(self, "polygon"))
 
     def find_halfedge(self, a: Vertex, b: Vertex) -> HalfEdge | None:
         """A half-edge from ``a`` to ``b``, preferring a free one; ``None`` if there is none.
@@ -213,9 +257,8 @@ class Mesh:
         >>> mesh.find_halfedge(a, b), mesh.find_halfedge(a, c)
         (HalfEdge(0), None)
         """
-        self._own(a, Vertex)
-        self._own(b, Vertex)
-        return navigation.find_halfedge(a, b)
+        h = navigation.find_halfedge(self, self._own(a, Vertex), self._own(b, Vertex))
+        return None if h is None else HalfEdge(self, h)
 
     # -- editing ------------------------------------------------------------
 
@@ -223,14 +266,17 @@ class Mesh:
     def _position(position) -> tuple[float, float, float] | None:
         if position is None:
             return None
-        try:
-            xyz = tuple(float(c) for c in position)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"a position is three numbers (x, y, z), not {position!r}") from None
+        what = "a position is three finite numbers (x, y, z)"
+        if isinstance(position, (str, bytes, dict, set)) or not hasattr(position, "__iter__"):
+            raise InvalidInputError(f"{what}, not {type(position).__name__} {position!r}")
+        xyz = tuple(position)
         if len(xyz) != 3:
-            raise InvalidInputError(f"a position is three numbers (x, y, z), not {len(xyz)}: {position!r}")
+            raise InvalidInputError(f"{what}, not {len(xyz)} values: {position!r}")
+        if not all(isinstance(c, numbers.Real) and not isinstance(c, bool) for c in xyz):
+            raise InvalidInputError(f"{what}, not {position!r}")
+        xyz = tuple(float(c) for c in xyz)
         if not all(math.isfinite(c) for c in xyz):
-            raise InvalidInputError(f"a position must be finite, not {position!r}")
+            raise InvalidInputError(f"{what}, not {position!r}")
         return xyz
 
     def add_vertex(self, position=None) -> Vertex:
@@ -245,8 +291,11 @@ class Mesh:
         (Vertex(0), (1.0, 2.0, 3.0), True)
         """
         xyz = self._position(position)
-        with self._store._editing(self._id) as uow:
+        with self._edit() as uow:
             return Vertex(self, kernel.add_vertex(uow, xyz))
+
+    def _edge_ends(self, a: Vertex, b: Vertex) -> tuple[int, int]:
+        return self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b")
 
     def add_edge(self, a: Vertex, b: Vertex) -> Edge:
         """Add an edge from ``a`` to ``b`` (``a is b`` gives a self-loop).
@@ -273,16 +322,35 @@ class Mesh:
         ...
         hestore.errors.PolicyError: vertices 1 and 0 are already joined by edge 0; this mesh does not allow parallel edges
         """
-        ia = self._own(a, Vertex, " for a")
-        ib = self._own(b, Vertex, " for b")
+        ia, ib = self._edge_ends(a, b)
+        with self._edit() as uow:
+            return Edge(self, kernel.add_edge(uow, ia, ib))
+
+    def can_add_edge(self, a: Vertex, b: Vertex) -> bool:
+        """Whether `add_edge` would succeed; nothing is written and no lock is taken.
+
+        The answer is from the same checks `add_edge` runs, on the state this
+        store sees now (another writer may change it before an `add_edge`).
+        Malformed input raises as `add_edge` would.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m", allow_loops=False)
+        >>> a, b = mesh.add_vertex(), mesh.add_vertex()
+        >>> mesh.can_add_edge(a, b), mesh.can_add_edge(a, a)
+        (True, False)
+        """
+        ia, ib = self._edge_ends(a, b)
         try:
-            with self._store._editing(self._id) as uow:
-                return Edge(self, kernel.add_edge(uow, ia, ib))
-        except TopologyError as exc:
-            raise self._handles(exc)
+            with self._edit(dry_run=True) as uow:
+                kernel.add_edge(uow, ia, ib)
+        except TopologyError:
+            return False
+        return True
 
     def _loop_ids(self, loop: Sequence) -> tuple[str, list[int]]:
-        if isinstance(loop, (str, bytes, _Handle)) or not hasattr(loop, "__iter__"):
+        if isinstance(loop, (str, bytes, dict, Handle)) or not hasattr(loop, "__iter__"):
             raise InvalidInputError(f"a polygon is a sequence of Vertex or of HalfEdge handles, not {loop!r}")
         items = list(loop)
         if not items:
@@ -295,12 +363,11 @@ class Mesh:
             )
         return ("vertex" if kind is Vertex else "halfedge"), [self._own(x, kind) for x in items]
 
-    def _add_polygon(self, loop: Sequence, dry_run: bool) -> int:
-        kind, ids = self._loop_ids(loop)
-        with self._store._editing(self._id, dry_run=dry_run) as uow:
-            if kind == "vertex":
-                return kernel.add_polygon_from_vertices(uow, ids)
-            return kernel.add_polygon(uow, ids)
+    @staticmethod
+    def _add_polygon(uow: UnitOfWork, kind: str, ids: list[int]) -> int:
+        if kind == "vertex":
+            return kernel.add_polygon_from_vertices(uow, ids)
+        return kernel.add_polygon(uow, ids)
 
     def add_polygon(self, loop: Sequence[Vertex] | Sequence[HalfEdge]) -> Polygon:
         """Add a polygon to the left of a loop of half-edges or through a cycle of vertices.
@@ -333,16 +400,19 @@ class Mesh:
         >>> one_gon.degree, one_gon.edges()[0].is_loop
         (1, True)
         """
-        try:
-            return Polygon(self, self._add_polygon(loop, dry_run=False))
-        except TopologyError as exc:
-            raise self._handles(exc)
+        kind, ids = self._loop_ids(loop)
+        with self._edit() as uow:
+            return Polygon(self, self._add_polygon(uow, kind, ids))
 
     def can_add_polygon(self, loop: Sequence[Vertex] | Sequence[HalfEdge]) -> bool:
-        """Whether `add_polygon` would succeed; nothing is written either way.
+        """Whether `add_polygon` would succeed; nothing is written and no lock is taken.
 
-        Malformed input (not handles, handles of another mesh or of removed
-        elements) still raises, as `add_polygon` would.
+        The answer is from the same checks `add_polygon` runs (it runs the
+        operation and throws it away), on the state this store sees now:
+        outside a block in a read-only transaction, so the question never
+        waits for a writer and never raises `StoreBusyError`. Malformed input
+        (not handles, handles of another mesh or of removed elements) still
+        raises, as `add_polygon` would.
 
         Examples
         --------
@@ -353,8 +423,10 @@ class Mesh:
         >>> mesh.can_add_polygon([a, b, c]), mesh.can_add_polygon([a, c, b])
         (False, True)
         """
+        kind, ids = self._loop_ids(loop)
         try:
-            self._add_polygon(loop, dry_run=True)
+            with self._edit(dry_run=True) as uow:
+                self._add_polygon(uow, kind, ids)
         except TopologyError:
             return False
         return True
@@ -371,7 +443,7 @@ class Mesh:
         Counts(vertices=3, halfedges=6, edges=3, polygons=0)
         """
         ip = self._own(p, Polygon)
-        with self._store._editing(self._id) as uow:
+        with self._edit() as uow:
             kernel.remove_polygon(uow, ip)
 
     def remove_edge(self, e: Edge) -> None:
@@ -386,7 +458,7 @@ class Mesh:
         Counts(vertices=3, halfedges=4, edges=2, polygons=0)
         """
         ie = self._own(e, Edge)
-        with self._store._editing(self._id) as uow:
+        with self._edit() as uow:
             kernel.remove_edge(uow, ie)
 
     def remove_vertex(self, v: Vertex) -> None:
@@ -402,38 +474,19 @@ class Mesh:
         Counts(vertices=2, halfedges=2, edges=1, polygons=0)
         """
         iv = self._own(v, Vertex)
-        with self._store._editing(self._id) as uow:
+        with self._edit() as uow:
             kernel.remove_vertex(uow, iv)
 
-    # -- summaries and graph views ---------------------------------------------
+    # -- graph views and bulk export -------------------------------------------
 
-    def stats(self) -> "Stats":
-        """Counts and topological invariants of the mesh; see `hestore.summary.stats`."""
-        from hestore import summary
-
-        return summary.stats(self)
-
-    def boundary_loops(self) -> list[list[HalfEdge]]:
-        """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
-        from hestore import summary
-
-        return summary.boundary_loops(self)
-
-    def components(self) -> list[set[Vertex]]:
-        """Connected components of the vertex–edge graph; see `hestore.summary.components`."""
-        from hestore import summary
-
-        return summary.components(self)
-
-    def to_networkx(self, kind: str = "multigraph"):
+    def to_networkx(self, kind: str = "multigraph") -> "nx.Graph":
         """A frozen networkx graph of the committed state; see `hestore.graphs.to_networkx`."""
+        # Imported here, not at the top: it imports networkx, which `import hestore` need not pay for.
         from hestore import graphs
 
         return graphs.to_networkx(self, kind)
 
-    # -- bulk export ----------------------------------------------------------
-
-    def to_arrays(self):
+    def to_arrays(self) -> bulk.MeshArrays:
         """``(positions, polygons, vertex_ids)``; see `hestore.bulk.to_arrays`.
 
         Examples
@@ -443,20 +496,21 @@ class Mesh:
         >>> mesh.to_arrays().polygons.tolist()
         [[0, 1, 2]]
         """
-        from hestore import bulk
-
         return bulk.to_arrays(self)
 
     def export(self, path, **options) -> None:
         """Write the mesh to an OFF, OBJ or PLY file; see `hestore.bulk.export`."""
-        from hestore import bulk
-
         bulk.export(self, path, **options)
 
     # -- validation ---------------------------------------------------------
 
-    def check(self) -> list["Violation"]:
+    def check(self) -> list[Violation]:
         """Every invariant violation in the stored mesh (empty when valid); never repairs.
+
+        Raises
+        ------
+        MeshNotFoundError
+            The mesh has been deleted.
 
         Examples
         --------
@@ -466,8 +520,6 @@ class Mesh:
         >>> mesh.check()
         []
         """
-        from hestore import validation
-
         return validation.check(self)
 
     def validate(self) -> None:

@@ -2,11 +2,14 @@
 
 `hestore.schema` defines the tables; the Alembic revisions in the
 ``migrations`` folder (shipped inside the wheel as ``hestore/migrations``)
-create and change them. This module finds those revisions, builds an Alembic
-configuration for them without an ``alembic.ini``, and runs them on a
-connection the caller owns: `hestore.open` uses it to create a new database at
-head, and ``hestore db upgrade`` / ``hestore db current`` to bring an older one
-forward and to report where one stands.
+create and change them. This module owns the schema's versioning: it finds
+those revisions, builds an Alembic configuration for them without an
+``alembic.ini``, runs them on a connection the caller owns (`upgrade`: what
+`hestore.open` uses to create a new database at head), and says where a
+database stands (`schema_state`, `SchemaState`). `database_state` and
+`upgrade_database` do the same for a database URL, below any store (a store
+refuses a database that is behind): they are ``hestore db current`` and
+``hestore db upgrade``.
 
 >>> import sqlalchemy as sa
 >>> from hestore import migrate
@@ -23,11 +26,13 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 
+from hestore import drivers, schema, urls
 from hestore.errors import SchemaVersionError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -42,6 +47,10 @@ __all__ = [
     "current_revision",
     "head_revision",
     "revisions",
+    "SchemaState",
+    "schema_state",
+    "database_state",
+    "upgrade_database",
 ]
 
 #: The table in which Alembic records the revision a database is at.
@@ -265,3 +274,162 @@ def revisions() -> list[str]:
     ('0001', True)
     """
     return [script.revision for script in reversed(list(_scripts().walk_revisions()))]
+
+
+@dataclass(frozen=True)
+class SchemaState:
+    """Where a database stands against this hestore's schema: what `schema_state` returns.
+
+    Attributes
+    ----------
+    current : str or None
+        The revision the database is at; None when it has no hestore schema.
+    head : str
+        This hestore's newest revision.
+    status : str
+        ``"new"`` (no hestore tables: `hestore.open` creates them at head),
+        ``"head"`` (up to date), ``"behind"`` (``hestore db upgrade`` brings
+        it to head), ``"ahead"`` (written by a newer hestore) or
+        ``"foreign"`` (tables with hestore's names that hestore did not
+        create: nothing will touch them).
+    foreign_tables : tuple of str
+        For ``"foreign"``: the tables in the way.
+    """
+
+    current: str | None
+    head: str
+    status: str
+    foreign_tables: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        """One line for people, e.g. ``0002 (behind head 0003: run `hestore db upgrade`)``.
+
+        Examples
+        --------
+        >>> SchemaState(None, "0003", "new").describe()
+        'none: a new, empty database (hestore creates its tables at head, 0003, when it first opens it)'
+        """
+        if self.status == "new":
+            return f"none: a new, empty database (hestore creates its tables at head, {self.head}, when it first opens it)"
+        if self.status == "foreign":
+            return (
+                f"none: the database holds tables hestore did not create ({', '.join(self.foreign_tables)}); "
+                "hestore will not use or change them"
+            )
+        if self.status == "head":
+            return f"{self.current} (head)"
+        if self.status == "behind":
+            return f"{self.current} (behind head {self.head}: run `hestore db upgrade`)"
+        return f"{self.current} (unknown to hestore, whose head is {self.head}: written by a newer hestore)"
+
+
+def schema_state(connection: sa.Connection) -> SchemaState:
+    """Where the database behind ``connection`` stands against this hestore's schema.
+
+    Parameters
+    ----------
+    connection : sqlalchemy.Connection
+        An open connection; nothing is written.
+
+    Returns
+    -------
+    SchemaState
+
+    Examples
+    --------
+    >>> import sqlalchemy as sa
+    >>> from hestore.migrate import schema_state, upgrade
+    >>> with sa.create_engine("sqlite://").connect() as conn:
+    ...     print(schema_state(conn).status, end=" ")
+    ...     upgrade(conn)
+    ...     print(schema_state(conn).status)
+    new head
+    """
+    head = head_revision()
+    current = current_revision(connection)
+    if current is None:
+        ours = set(schema.metadata.tables)
+        clash = tuple(sorted(ours & set(sa.inspect(connection).get_table_names())))
+        return SchemaState(None, head, "foreign" if clash else "new", clash)
+    if current == head:
+        return SchemaState(current, head, "head")
+    return SchemaState(current, head, "behind" if current in revisions() else "ahead")
+
+
+def database_state(url: str | sa.engine.URL | None) -> SchemaState:
+    """Where the database at ``url`` stands, without changing anything (``hestore db current``).
+
+    A SQLite file that does not exist yet is ``"new"`` and is not created.
+
+    Raises
+    ------
+    InvalidInputError
+        ``url`` is not a database hestore supports.
+    StoreError
+        The database cannot be read.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> path = os.path.join(tempfile.mkdtemp(), "new.db")
+    >>> database_state(path).status, os.path.exists(path)
+    ('new', False)
+    """
+    url = urls.resolve(url)
+    path = urls.sqlite_path(url)
+    if path is not None and not Path(path).exists():
+        return SchemaState(None, head_revision(), "new")
+    engine = drivers.make_engine(url, busy_timeout=5.0, pooled=False, autocommit=False)
+    try:
+        with drivers.guard(f"cannot read {urls.shown(url)}", urls.shown(url)), engine.connect() as conn:
+            return schema_state(conn)
+    finally:
+        engine.dispose()
+
+
+def upgrade_database(url: str | sa.engine.URL | None) -> tuple[SchemaState, SchemaState]:
+    """Bring the database at ``url`` to head, creating it if new (``hestore db upgrade``).
+
+    Returns
+    -------
+    (SchemaState, SchemaState)
+        Where it stood before and where it stands after.
+
+    Raises
+    ------
+    SchemaVersionError
+        Tables hestore did not create are in the way, or a newer hestore
+        wrote the database: nothing is changed.
+    StoreError
+        The database cannot be changed (read-only, unreachable).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> before, after = upgrade_database(os.path.join(tempfile.mkdtemp(), "m.db"))
+    >>> before.status, after.status
+    ('new', 'head')
+    """
+    url = urls.resolve(url)
+    shown = urls.shown(url)
+    engine = drivers.make_engine(url, busy_timeout=5.0, pooled=False, autocommit=False)
+    try:
+        with drivers.guard(f"cannot upgrade {shown}", shown), engine.connect() as conn:
+            before = schema_state(conn)
+            if before.status == "foreign":
+                # Creating the tables would collide with these; which revision
+                # they match is anyone's guess, so leave them to a human.
+                raise SchemaVersionError(
+                    f"{shown} holds tables hestore did not create ({', '.join(before.foreign_tables)}); "
+                    "refusing to migrate it"
+                )
+            if before.status == "ahead":
+                raise SchemaVersionError(
+                    f"{shown} is at schema revision {before.current}, which this hestore does not know "
+                    f"(its head is {before.head}); it was written by a newer hestore"
+                )
+            if before.status != "head":
+                upgrade(conn)
+            return before, schema_state(conn)
+    finally:
+        engine.dispose()

@@ -1,13 +1,19 @@
-"""Navigation: reading the stored structure through handles.
+"""Navigation: reading the stored structure, one element at a time.
 
-Free functions for every name of SPEC §3's navigation table and for the
-circulators. Each answers with as few queries as it can: a half-edge's
-references together with its target in one query, a vertex's whole star or a
-polygon's whole ring in one query, ordered in Python afterwards.
+This module owns the queries behind every name of SPEC §3's navigation table
+and behind the circulators. Its functions are free functions on a mesh and
+integer ids, returning ids and id records; `hestore.handles` wraps them into
+handles. Each answers with as few queries as it can: a half-edge's references
+together with its target in one query, a vertex's whole star or a polygon's
+whole ring in one query, ordered in Python afterwards. Every query is a
+compiled statement run through `hestore.session.Session.fetch`, so it sees
+the open transaction's own edits.
 
 Rotation order is counter-clockwise, ``onext(h) = twin(prev(h))``, starting at
-the element's own ``halfedge``. Everything reads what the current connection
-sees: committed data, plus the open transaction's own edits.
+the element's own ``halfedge``.
+
+An element that is not there raises `ElementNotFoundError`, or
+`MeshNotFoundError` when the whole mesh is gone (`missing`).
 """
 
 from __future__ import annotations
@@ -17,70 +23,60 @@ from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 
-from hestore import handles, schema
-from hestore.errors import ElementNotFoundError, InvariantViolationError
+from hestore import schema
+from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
 from hestore.statements import indexed_by
-from hestore.validation import Violation
 
 if TYPE_CHECKING:  # pragma: no cover
-    from hestore.handles import Edge, HalfEdge, Polygon, Vertex
     from hestore.mesh import Mesh
 
-# `hestore.handles` imports this module; its classes are looked up at call time.
-
 __all__ = [
+    "missing",
+    "exists",
     "halfedge_record",
-    "next_halfedge",
-    "prev_halfedge",
-    "twin",
-    "origin",
-    "target",
-    "polygon",
-    "edge",
-    "is_boundary_halfedge",
-    "onext",
-    "oprev",
-    "dnext",
-    "dprev",
-    "rnext",
-    "rprev",
+    "vertex_row",
+    "star",
+    "ring",
+    "edge_row",
+    "polygon_halfedge",
+    "is_boundary_vertex",
     "vector",
     "length",
-    "vertex_halfedge",
-    "position",
-    "outgoing",
-    "incoming",
-    "neighbors",
-    "vertex_edges",
-    "vertex_polygons",
-    "degree",
-    "is_isolated",
-    "is_boundary_vertex",
-    "polygon_halfedges",
-    "polygon_vertices",
-    "polygon_edges",
-    "polygon_neighbors",
-    "polygon_degree",
-    "edge_halfedges",
-    "edge_vertices",
-    "edge_polygons",
-    "is_boundary_edge",
-    "is_loop",
     "find_halfedge",
+    "ids",
 ]
 
 _H = schema.halfedges
 
 
 def _rows(mesh: "Mesh", key: str, build, **values) -> list[tuple]:
-    store = mesh._store
-    stmt = store.statements.get(key, build)
-    values["m"] = mesh._id
-    return stmt.rows(store._cursor(), values)
+    return mesh.session.fetch(mesh.ref, key, build, values)
 
 
-def _missing(kind: str, mesh: "Mesh", i: int) -> ElementNotFoundError:
+def _build_mesh():
+    m = schema.meshes
+    return sa.select(m.c.id).where(m.c.id == sa.bindparam("m"))
+
+
+def missing(mesh: "Mesh", kind: str, i: int) -> ElementNotFoundError:
+    """The error for element ``i`` of ``kind`` not found: `MeshNotFoundError` if the mesh is gone."""
+    if not _rows(mesh, "nav_mesh", _build_mesh):
+        return mesh.session.missing(mesh.ref)
     return ElementNotFoundError(f"{kind} {i} does not exist in mesh {mesh.name!r} (removed, or never created)")
+
+
+_TABLES = {"vertex": schema.vertices, "half-edge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
+
+
+def exists(mesh: "Mesh", kind: str, i: int) -> None:
+    """Raise unless element ``i`` of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``) exists."""
+    table = _TABLES[kind]
+
+    def build():
+        return sa.select(sa.literal_column("1")).where(table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i"))
+
+    if not _rows(mesh, ("nav_exists", kind), build, i=i):
+        raise missing(mesh, kind, i)
 
 
 # -- half-edges ---------------------------------------------------------------
@@ -95,102 +91,27 @@ def _build_he():
     )
 
 
-def halfedge_record(h: "HalfEdge") -> tuple:
-    """``(origin, next, prev, twin, edge, polygon, target)`` ids of ``h`` in one query."""
-    rows = _rows(h.mesh, "nav_he", _build_he, i=h.id)
+def halfedge_record(mesh: "Mesh", h: int) -> tuple:
+    """``(origin, next, prev, twin, edge, polygon, target)`` of half-edge ``h``, in one query."""
+    rows = _rows(mesh, "nav_he", _build_he, i=h)
     if not rows:
-        raise _missing("half-edge", h.mesh, h.id)
+        raise missing(mesh, "half-edge", h)
     return rows[0]
 
 
-def _he(mesh: "Mesh", i: int) -> "HalfEdge":
-    return handles.HalfEdge(mesh, i)
-
-
-def next_halfedge(h: "HalfEdge") -> "HalfEdge":
-    """The next half-edge around the left polygon (or boundary loop)."""
-    return _he(h.mesh, halfedge_record(h)[1])
-
-
-def prev_halfedge(h: "HalfEdge") -> "HalfEdge":
-    """The previous half-edge around the left polygon (or boundary loop)."""
-    return _he(h.mesh, halfedge_record(h)[2])
-
-
-def twin(h: "HalfEdge") -> "HalfEdge":
-    """The opposite half-edge of the same edge."""
-    return _he(h.mesh, halfedge_record(h)[3])
-
-
-def origin(h: "HalfEdge") -> "Vertex":
-    """The vertex ``h`` starts at."""
-    return handles.Vertex(h.mesh, halfedge_record(h)[0])
-
-
-def target(h: "HalfEdge") -> "Vertex":
-    """The vertex ``h`` ends at (the origin of its twin)."""
-    return handles.Vertex(h.mesh, halfedge_record(h)[6])
-
-
-def polygon(h: "HalfEdge") -> "Polygon | None":
-    """The polygon to the left of ``h``; ``None`` if ``h`` is free."""
-    p = halfedge_record(h)[5]
-    return None if p is None else handles.Polygon(h.mesh, p)
-
-
-def edge(h: "HalfEdge") -> "Edge":
-    """The edge ``h`` is half of."""
-    return handles.Edge(h.mesh, halfedge_record(h)[4])
-
-
-def is_boundary_halfedge(h: "HalfEdge") -> bool:
-    """Whether ``h`` is free (has no polygon)."""
-    return halfedge_record(h)[5] is None
-
-
-def onext(h: "HalfEdge") -> "HalfEdge":
-    """``twin(prev(h))``: the next outgoing half-edge counter-clockwise around the origin."""
-    return twin(prev_halfedge(h))
-
-
-def oprev(h: "HalfEdge") -> "HalfEdge":
-    """``next(twin(h))``: the next outgoing half-edge clockwise around the origin."""
-    return next_halfedge(twin(h))
-
-
-def dnext(h: "HalfEdge") -> "HalfEdge":
-    """``prev(twin(h))``: around the destination."""
-    return prev_halfedge(twin(h))
-
-
-def dprev(h: "HalfEdge") -> "HalfEdge":
-    """``twin(next(h))``: around the destination."""
-    return twin(next_halfedge(h))
-
-
-def rnext(h: "HalfEdge") -> "HalfEdge":
-    """``twin(next(twin(h)))``: around the right polygon."""
-    return twin(next_halfedge(twin(h)))
-
-
-def rprev(h: "HalfEdge") -> "HalfEdge":
-    """``twin(prev(twin(h)))``: around the right polygon."""
-    return twin(prev_halfedge(twin(h)))
-
-
-def vector(h: "HalfEdge") -> tuple[float, float, float] | None:
-    """``position(target) - position(origin)``; ``None`` unless both ends have positions."""
-    rec = halfedge_record(h)
-    a = _vertex_row(h.mesh, rec[0])
-    b = _vertex_row(h.mesh, rec[6])
+def vector(mesh: "Mesh", h: int) -> tuple[float, float, float] | None:
+    """``position(target) - position(origin)`` of half-edge ``h``; ``None`` unless both ends have positions."""
+    rec = halfedge_record(mesh, h)
+    a = vertex_row(mesh, rec[0])
+    b = vertex_row(mesh, rec[6])
     if a[1] is None or b[1] is None:
         return None
     return (b[1] - a[1], b[2] - a[2], b[3] - a[3])
 
 
-def length(h: "HalfEdge") -> float | None:
-    """Euclidean length of ``h``; ``None`` unless both ends have positions."""
-    v = vector(h)
+def length(mesh: "Mesh", h: int) -> float | None:
+    """Euclidean length of half-edge ``h``; ``None`` unless both ends have positions."""
+    v = vector(mesh, h)
     return None if v is None else math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
@@ -204,23 +125,12 @@ def _build_v():
     )
 
 
-def _vertex_row(mesh: "Mesh", i: int) -> tuple:
-    rows = _rows(mesh, "nav_v", _build_v, i=i)
+def vertex_row(mesh: "Mesh", v: int) -> tuple:
+    """``(halfedge, x, y, z)`` of vertex ``v`` (``halfedge`` None if isolated, coordinates None without a position)."""
+    rows = _rows(mesh, "nav_v", _build_v, i=v)
     if not rows:
-        raise _missing("vertex", mesh, i)
+        raise missing(mesh, "vertex", v)
     return rows[0]
-
-
-def vertex_halfedge(v: "Vertex") -> "HalfEdge | None":
-    """An outgoing half-edge of ``v`` (a free one if any); ``None`` if isolated."""
-    h = _vertex_row(v.mesh, v.id)[0]
-    return None if h is None else _he(v.mesh, h)
-
-
-def position(v: "Vertex") -> tuple[float, float, float] | None:
-    """``(x, y, z)`` of ``v``, or ``None`` if it has no position."""
-    row = _vertex_row(v.mesh, v.id)
-    return None if row[1] is None else (row[1], row[2], row[3])
 
 
 def _build_star():
@@ -236,11 +146,14 @@ def _build_star():
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def _star(v: "Vertex") -> list[tuple]:
-    """Outgoing half-edges of ``v`` as ``(id, prev, twin, edge, polygon, target)``, CCW from ``v.halfedge``."""
-    rows = _rows(v.mesh, "nav_star", _build_star, i=v.id)
+def star(mesh: "Mesh", v: int) -> list[tuple]:
+    """Outgoing half-edges of vertex ``v`` as ``(id, prev, twin, edge, polygon, target)``, CCW from ``v.halfedge``.
+
+    One query for the whole star, ordered here: ``onext(h) = twin(prev(h))``.
+    """
+    rows = _rows(mesh, "nav_star", _build_star, i=v)
     if not rows:
-        raise _missing("vertex", v.mesh, v.id)
+        raise missing(mesh, "vertex", v)
     start = rows[0][0]
     if start is None:
         return []
@@ -257,43 +170,8 @@ def _star(v: "Vertex") -> list[tuple]:
         if h == start:
             return ordered
     raise InvariantViolationError(
-        [Violation("V_ROTATION", "vertex", (v.id,), f"the rotation around vertex {v.id} does not close; run check()")]
+        [Violation("V_ROTATION", "vertex", (v,), f"the rotation around vertex {v} does not close; run check()")]
     )
-
-
-def outgoing(v: "Vertex") -> list["HalfEdge"]:
-    """Half-edges leaving ``v``, counter-clockwise from ``v.halfedge``."""
-    return [_he(v.mesh, r[0]) for r in _star(v)]
-
-
-def incoming(v: "Vertex") -> list["HalfEdge"]:
-    """Half-edges arriving at ``v``: the twins of `outgoing`, in the same order."""
-    return [_he(v.mesh, r[2]) for r in _star(v)]
-
-
-def neighbors(v: "Vertex") -> list["Vertex"]:
-    """The target of each outgoing half-edge (repeats for parallel edges, ``v`` for a loop)."""
-    return [handles.Vertex(v.mesh, r[5]) for r in _star(v)]
-
-
-def vertex_edges(v: "Vertex") -> list["Edge"]:
-    """The edge of each outgoing half-edge (a self-loop appears twice)."""
-    return [handles.Edge(v.mesh, r[3]) for r in _star(v)]
-
-
-def vertex_polygons(v: "Vertex") -> list["Polygon"]:
-    """The polygon of each outgoing half-edge, skipping free gaps."""
-    return [handles.Polygon(v.mesh, r[4]) for r in _star(v) if r[4] is not None]
-
-
-def degree(v: "Vertex") -> int:
-    """Number of outgoing half-edges (a self-loop counts twice, as in networkx)."""
-    return len(_star(v))
-
-
-def is_isolated(v: "Vertex") -> bool:
-    """Whether no edge touches ``v``."""
-    return _vertex_row(v.mesh, v.id)[0] is None
 
 
 def _build_vfree():
@@ -305,14 +183,14 @@ def _build_vfree():
     )
 
 
-def is_boundary_vertex(v: "Vertex") -> bool:
-    """Whether ``v`` has a free outgoing half-edge, or is isolated (as in OpenMesh).
+def is_boundary_vertex(mesh: "Mesh", v: int) -> bool:
+    """Whether vertex ``v`` has a free outgoing half-edge, or is isolated (as in OpenMesh).
 
     O(1): by the boundary convention ``v.halfedge`` is free if any is.
     """
-    rows = _rows(v.mesh, "nav_vfree", _build_vfree, i=v.id)
+    rows = _rows(mesh, "nav_vfree", _build_vfree, i=v)
     if not rows:
-        raise _missing("vertex", v.mesh, v.id)
+        raise missing(mesh, "vertex", v)
     return rows[0][0] is None or rows[0][1] is None
 
 
@@ -332,11 +210,11 @@ def _build_ring():
     return indexed_by(stmt, _H, "ix_halfedges_polygon")
 
 
-def _ring(p: "Polygon") -> list[tuple]:
-    """Half-edges of ``p`` as ``(id, next, origin, edge, twin_polygon)``, in ``next`` order."""
-    rows = _rows(p.mesh, "nav_ring", _build_ring, i=p.id)
+def ring(mesh: "Mesh", p: int) -> list[tuple]:
+    """Half-edges of polygon ``p`` as ``(id, next, origin, edge, twin_polygon)``, in ``next`` order from ``p.halfedge``."""
+    rows = _rows(mesh, "nav_ring", _build_ring, i=p)
     if not rows:
-        raise _missing("polygon", p.mesh, p.id)
+        raise missing(mesh, "polygon", p)
     start = rows[0][0]
     by_id = {r[1]: r[1:] for r in rows}
     ordered = []
@@ -350,33 +228,21 @@ def _ring(p: "Polygon") -> list[tuple]:
         if h == start:
             return ordered
     raise InvariantViolationError(
-        [Violation("P_LOOP", "polygon", (p.id,), f"the half-edges of polygon {p.id} do not close; run check()")]
+        [Violation("P_LOOP", "polygon", (p,), f"the half-edges of polygon {p} do not close; run check()")]
     )
 
 
-def polygon_halfedges(p: "Polygon") -> list["HalfEdge"]:
-    """The half-edges of ``p`` in ``next`` order, from ``p.halfedge``."""
-    return [_he(p.mesh, r[0]) for r in _ring(p)]
+def _build_p():
+    pol = schema.polygons
+    return sa.select(pol.c.halfedge).where(pol.c.mesh_id == sa.bindparam("m"), pol.c.id == sa.bindparam("i"))
 
 
-def polygon_vertices(p: "Polygon") -> list["Vertex"]:
-    """The corners of ``p`` (origins of its half-edges), counter-clockwise."""
-    return [handles.Vertex(p.mesh, r[2]) for r in _ring(p)]
-
-
-def polygon_edges(p: "Polygon") -> list["Edge"]:
-    """The edges of ``p``, in ``next`` order."""
-    return [handles.Edge(p.mesh, r[3]) for r in _ring(p)]
-
-
-def polygon_neighbors(p: "Polygon") -> list["Polygon"]:
-    """The polygon across each edge of ``p``, free sides skipped (``p`` itself where it meets itself)."""
-    return [handles.Polygon(p.mesh, r[4]) for r in _ring(p) if r[4] is not None]
-
-
-def polygon_degree(p: "Polygon") -> int:
-    """Number of half-edges of ``p``."""
-    return len(_ring(p))
+def polygon_halfedge(mesh: "Mesh", p: int) -> int:
+    """The half-edge stored for polygon ``p``."""
+    rows = _rows(mesh, "nav_p", _build_p, i=p)
+    if not rows:
+        raise missing(mesh, "polygon", p)
+    return rows[0][0]
 
 
 # -- edges --------------------------------------------------------------------
@@ -394,61 +260,12 @@ def _build_e():
     )
 
 
-def _edge_row(e: "Edge") -> tuple:
-    """``(h, twin, origin(h), origin(twin), polygon(h), polygon(twin))``."""
-    rows = _rows(e.mesh, "nav_e", _build_e, i=e.id)
+def edge_row(mesh: "Mesh", e: int) -> tuple:
+    """``(h, twin, origin(h), origin(twin), polygon(h), polygon(twin))`` of edge ``e``, ``h`` its half-edge."""
+    rows = _rows(mesh, "nav_e", _build_e, i=e)
     if not rows:
-        raise _missing("edge", e.mesh, e.id)
+        raise missing(mesh, "edge", e)
     return rows[0]
-
-
-def edge_halfedges(e: "Edge") -> tuple["HalfEdge", "HalfEdge"]:
-    """``(e.halfedge, its twin)``."""
-    row = _edge_row(e)
-    return _he(e.mesh, row[0]), _he(e.mesh, row[1])
-
-
-def edge_vertices(e: "Edge") -> tuple["Vertex", "Vertex"]:
-    """``(origin, target)`` of ``e.halfedge``."""
-    row = _edge_row(e)
-    return handles.Vertex(e.mesh, row[2]), handles.Vertex(e.mesh, row[3])
-
-
-def edge_polygons(e: "Edge") -> list["Polygon"]:
-    """The polygons on the two sides of ``e``, free sides skipped."""
-    row = _edge_row(e)
-    return [handles.Polygon(e.mesh, p) for p in (row[4], row[5]) if p is not None]
-
-
-def is_boundary_edge(e: "Edge") -> bool:
-    """Whether at least one side of ``e`` is free (as OpenMesh's ``is_boundary``)."""
-    row = _edge_row(e)
-    return row[4] is None or row[5] is None
-
-
-def is_loop(e: "Edge") -> bool:
-    """Whether both ends of ``e`` are the same vertex."""
-    row = _edge_row(e)
-    return row[2] == row[3]
-
-
-def edge_halfedge(e: "Edge") -> "HalfEdge":
-    """The half-edge stored for ``e``."""
-    return _he(e.mesh, _edge_row(e)[0])
-
-
-def polygon_halfedge(p: "Polygon") -> "HalfEdge":
-    """The half-edge stored for ``p``."""
-    pol = schema.polygons
-    rows = _rows(
-        p.mesh,
-        "nav_p",
-        lambda: sa.select(pol.c.halfedge).where(pol.c.mesh_id == sa.bindparam("m"), pol.c.id == sa.bindparam("i")),
-        i=p.id,
-    )
-    if not rows:
-        raise _missing("polygon", p.mesh, p.id)
-    return _he(p.mesh, rows[0][0])
 
 
 # -- mesh level ---------------------------------------------------------------
@@ -466,9 +283,22 @@ def _build_find():
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def find_halfedge(a: "Vertex", b: "Vertex") -> "HalfEdge | None":
-    """A half-edge from ``a`` to ``b``, a free one if any (lowest id); ``None`` if none."""
-    _vertex_row(a.mesh, a.id)
-    _vertex_row(b.mesh, b.id)
-    rows = _rows(a.mesh, "nav_find", _build_find, a=a.id, b=b.id)
-    return _he(a.mesh, rows[0][0]) if rows else None
+def find_halfedge(mesh: "Mesh", a: int, b: int) -> int | None:
+    """A half-edge from vertex ``a`` to vertex ``b``, a free one if any (lowest id); ``None`` if none."""
+    exists(mesh, "vertex", a)
+    exists(mesh, "vertex", b)
+    rows = _rows(mesh, "nav_find", _build_find, a=a, b=b)
+    return rows[0][0] if rows else None
+
+
+def ids(mesh: "Mesh", kind: str) -> list[int]:
+    """Ids of every element of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``), ascending."""
+    table = _TABLES[kind]
+
+    def build():
+        return sa.select(table.c.id).where(table.c.mesh_id == sa.bindparam("m")).order_by(table.c.id)
+
+    found = [r[0] for r in _rows(mesh, ("nav_ids", kind), build)]
+    if not found and not _rows(mesh, "nav_mesh", _build_mesh):
+        raise mesh.session.missing(mesh.ref)
+    return found

@@ -6,13 +6,12 @@ Euler characteristic, genus, pinched vertices, closedness, manifoldness) and
 the definitions behind each of its fields; `Mesh` only delegates here.
 
 Everything is set-based. The columns a summary needs are read in one
-consistent snapshot with `hestore.columns.read_columns` (through the store's
-own connection, so inside a transaction block the block's edits are seen),
+consistent snapshot through the store's session (`Session.snapshot`; inside a
+transaction block the block's edits are seen),
 references become row numbers, and the rest is numpy:
 
 - cycles of ``next`` among free half-edges are labelled by pointer jumping
-  (`hestore.validation`'s ``_cycles``), ``log2`` of the longest boundary loop
-  rounds;
+  (`hestore.arrays.cycles`), ``log2`` of the longest boundary loop rounds;
 - connected components come from a vectorised union-find: every tree hooks
   its root onto the smallest neighbouring root, then pointer jumping flattens
   the trees again; each tree merges with another within two rounds, so there
@@ -49,9 +48,8 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.columns import read_columns
+from hestore.arrays import Index, cycle_positions, cycles, dense, groups
 from hestore.handles import HalfEdge, Vertex
-from hestore.validation import _cycles, _Index
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -203,7 +201,6 @@ def _read(mesh: "Mesh", *, sides: bool, links: bool) -> _Tables:
     Half-edge ids always; ``sides``: each half-edge's polygon, and ``next``
     where it is free; ``links``: ``origin`` and ``twin``, and the vertex ids.
     """
-    mesh.revision  # raises MeshNotFoundError for a deleted mesh
     v, h = schema.vertices, schema.halfedges
     # Only free half-edges need ``next`` (for boundary cycles), and only
     # others a polygon: one column carries both, ``polygon`` or ``-1 - next``
@@ -213,13 +210,10 @@ def _read(mesh: "Mesh", *, sides: bool, links: bool) -> _Tables:
     requests = [(h, columns)]
     if links:
         requests.append((v, [v.c.id]))
-    with mesh._store._read() as conn:
-        tables = read_columns(conn, mesh._id, requests)
-    if not any(len(t[0]) for t in tables):
-        # An empty read may be a mesh deleted after the check above.
-        mesh.revision
+    with mesh.session.snapshot(mesh.ref) as snap:
+        tables = snap.columns(requests)
     he_id, *more = tables[0]
-    he_index = _Index(he_id)
+    he_index = Index(he_id)
     v_id = origin = twin = polygon = nxt = None
     # Rows, not ids: ids are never reused, so after deletions they have gaps.
     if sides:
@@ -230,7 +224,7 @@ def _read(mesh: "Mesh", *, sides: bool, links: bool) -> _Tables:
         nxt[free] = he_index.find(-1 - side[free])[0]
     if links:
         v_id = tables[1][0]
-        origin = _Index(v_id).find(more[0])[0]
+        origin = Index(v_id).find(more[0])[0]
         twin = he_index.find(more[1])[0]
     return _Tables(v_id, he_id, origin, twin, polygon, nxt)
 
@@ -256,29 +250,8 @@ def _free_cycles(free: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndar
     # A free half-edge whose next has a polygon (a corrupted table) ends its walk there.
     stray = f < 0
     f[stray] = np.flatnonzero(stray)
-    label, on_cycle, _ = _cycles(f)
+    label, on_cycle, _ = cycles(f)
     return rows, f, label, on_cycle
-
-
-def _cycle_positions(f: np.ndarray, label: np.ndarray) -> np.ndarray:
-    """Steps from the smallest member of each cycle of ``f`` to each element.
-
-    List ranking by pointer jumping: cut every cycle just before its smallest
-    member (``label[i] == i``), count the steps from each element to the cut,
-    and subtract from the cycle's length. ``log2`` of the longest cycle rounds.
-    """
-    n = len(f)
-    ids = np.arange(n, dtype=_I64)
-    succ = np.where(label[f] == f, ids, f)
-    to_end = (succ != ids).astype(_I64)
-    while True:
-        jumped = succ[succ]
-        if np.array_equal(jumped, succ):
-            break
-        to_end += to_end[succ]
-        succ = jumped
-    length = np.bincount(label, minlength=n)[label]
-    return length - 1 - to_end
 
 
 def _component_roots(n: int, u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -311,29 +284,6 @@ def _component_roots(n: int, u: np.ndarray, w: np.ndarray) -> np.ndarray:
                 break
             parent = grand
     return parent
-
-
-def _groups(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Element order grouped by label (labels ascending, elements in order) and the group offsets."""
-    order = np.argsort(labels, kind="stable")
-    sorted_labels = labels[order]
-    starts = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]]) if len(order) else order
-    return order, np.r_[starts, len(order)]
-
-
-def _dense(ids: np.ndarray) -> tuple[np.ndarray, int]:
-    """Dense numbers ``0..k-1`` for arbitrary ids, and ``k`` (the number of distinct ids)."""
-    if not len(ids):
-        return ids, 0
-    low, span = int(ids.min()), int(ids.max()) - int(ids.min()) + 1
-    if span <= 8 * len(ids) + 1024:
-        # Ids are allocated densely, so a table beats sorting.
-        seen = np.zeros(span, dtype=bool)
-        seen[ids - low] = True
-        number = np.cumsum(seen, dtype=_I64) - 1
-        return number[ids - low], int(number[-1]) + 1
-    distinct, inverse = np.unique(ids, return_inverse=True)
-    return inverse.astype(_I64, copy=False), len(distinct)
 
 
 # --------------------------------------------------------------------------
@@ -397,7 +347,7 @@ def stats(mesh: "Mesh") -> Stats:
     boundary_edges = int(np.count_nonzero(free_rep != free_other))
     wire_edges = int(np.count_nonzero(free_rep & free_other))
 
-    polygon_of, n_p = _dense(t.polygon[~free])
+    polygon_of, n_p = dense(t.polygon[~free])
     arity = np.bincount(polygon_of, minlength=n_p)
     by_arity = np.bincount(arity)
     polygon_sizes = {int(k): int(by_arity[k]) for k in np.flatnonzero(by_arity) if k > 0}
@@ -490,7 +440,7 @@ def boundary_loops(mesh: "Mesh") -> list[list[HalfEdge]]:
     where[keep] = np.arange(len(keep), dtype=_I64)
     f = where[f[keep]]
     label = where[label[keep]]
-    position = _cycle_positions(f, label)
+    position = cycle_positions(f, label)
     order = np.lexsort((position, label))
     ids = t.he_id[free_rows[keep][order]].tolist()
     bounds = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1], True]).tolist() if len(ids) else [0]
@@ -529,7 +479,7 @@ def components(mesh: "Mesh") -> list[set[Vertex]]:
     t = _read(mesh, sides=False, links=True)
     rep = np.flatnonzero(np.arange(len(t.he_id)) < t.twin)
     roots = _component_roots(len(t.v_id), t.origin[rep], t.origin[t.twin[rep]])
-    order, bounds = _groups(roots)
+    order, bounds = groups(roots)
     ids = t.v_id[order].tolist()
     bounds = bounds.tolist()
     return [{Vertex(mesh, i) for i in ids[a:b]} for a, b in zip(bounds[:-1], bounds[1:])]

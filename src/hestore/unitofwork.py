@@ -1,17 +1,22 @@
 """The unit of work: a mesh's rows as one write transaction sees them.
 
-Topological operations (`hestore.kernel`) never talk to SQL. They read and
-write through a `UnitOfWork`, which
+This module owns the in-memory side of editing. Topological operations
+(`hestore.kernel`) never talk to SQL; they read and write through a
+`UnitOfWork`, which
 
-* loads rows in batches (a vertex's whole star in one query) and keeps them
-  for the rest of the transaction — valid because the transaction holds the
-  mesh's write lock, so nobody else can change them;
+* loads rows in batches (a vertex's whole star in one query) through the
+  loader it was given (`hestore.persistence.Persistence.load`) and keeps
+  them for the rest of the transaction — valid because the transaction holds
+  the mesh's write lock, so nobody else can change them;
 * records every change of an operation in an undo log, so an operation that
   raises half-way (a ``makeAdjacent`` that finds no free gap on the third
-  corner) leaves no trace;
-* writes the difference between what it loaded and what it holds now in a
-  few set-based statements when the store flushes it (before a read, a
-  savepoint, or the commit).
+  corner) leaves no trace (`UnitOfWork.operation`);
+* hands over what changed since the last flush as a `ChangeSet` — a small
+  typed record of inserted, updated and deleted rows per table, the id
+  counters, whole tables of a bulk import, or the mesh's drop — which
+  `hestore.persistence` writes when the session flushes (before a read, a
+  savepoint, or the commit). Every edit reaches the database through that one
+  record, so whatever must see every change plugs in there.
 
 Half-edge records are tuples ``(origin, next, prev, twin, edge, polygon)``;
 `GONE` marks a deleted element. Ids come from the mesh's counters and are
@@ -20,18 +25,34 @@ never reused: edge ``e`` owns half-edges ``2e`` and ``2e + 1``.
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
-import sqlalchemy as sa
+from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
 
-from hestore import schema
-from hestore.errors import ElementNotFoundError, InvariantViolationError
-from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
-from hestore.validation import Violation
-
-__all__ = ["UnitOfWork", "MeshSQL", "GONE", "ORIGIN", "NEXT", "PREV", "TWIN", "EDGE", "POLYGON"]
+__all__ = [
+    "UnitOfWork",
+    "ChangeSet",
+    "RowChanges",
+    "BulkRows",
+    "GONE",
+    "HE_COLUMNS",
+    "ORIGIN",
+    "NEXT",
+    "PREV",
+    "TWIN",
+    "EDGE",
+    "POLYGON",
+]
 
 ORIGIN, NEXT, PREV, TWIN, EDGE, POLYGON = range(6)
+
+#: The ``halfedges`` columns of a loaded or inserted row, in record order after the id.
+HE_COLUMNS = ("id", "origin", "next", "prev", "twin", "edge", "polygon")
+
+#: Row kinds of `hestore.persistence.Persistence.load`'s result.
+K_VERTEX, K_HALFEDGE, K_EDGE, K_POLYGON = range(4)
 
 
 class _Marker:
@@ -50,208 +71,86 @@ GONE = _Marker("GONE")
 NEW = _Marker("NEW")
 _ABSENT = _Marker("ABSENT")
 
-_HE_COLS = ("id", "origin", "next", "prev", "twin", "edge", "polygon")
 
+class RowChanges(NamedTuple):
+    """The rows of one table a flush inserts, updates and deletes, each list by id.
 
-K_VERTEX, K_HALFEDGE, K_EDGE, K_POLYGON = range(4)
-
-
-def _load_statement(sizes: tuple) -> sa.CompoundSelect:
-    """The ``UNION ALL`` behind `MeshSQL.load` for the given part sizes."""
-    h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-    null = sa.cast(sa.null(), sa.BigInteger)
-    m = sa.bindparam("m")
-
-    def kind(k: int):
-        return sa.literal_column(str(k), sa.Integer)
-
-    def he_cols(t):
-        return [kind(K_HALFEDGE)] + [t.c[name] for name in _HE_COLS]
-
-    def pair_cols(k, t):
-        return [kind(k), t.c.id, t.c.halfedge] + [null] * 5
-
-    selects = []
-    for name, size in sizes:
-        ids = [sa.bindparam(f"{name}{i}") for i in range(size)]
-        if name == "vertices":
-            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
-        elif name == "halfedges":
-            selects.append(sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.id.in_(ids)))
-        elif name == "stars":
-            s, t = h.alias("s"), h.alias("t")
-            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
-            out = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.origin.in_(ids))
-            selects.append(indexed_by(out, h, "ix_halfedges_origin"))
-            twins = (
-                sa.select(*he_cols(t))
-                .select_from(s.join(t, sa.and_(t.c.mesh_id == s.c.mesh_id, t.c.id == s.c.twin)))
-                .where(s.c.mesh_id == m, s.c.origin.in_(ids))
-            )
-            selects.append(indexed_by(twins, s, "ix_halfedges_origin"))
-        elif name == "edges":
-            a, b = h.alias("a"), h.alias("b")
-            selects.append(sa.select(*pair_cols(K_EDGE, e)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
-            on_a = sa.and_(a.c.mesh_id == e.c.mesh_id, a.c.id == e.c.halfedge)
-            selects.append(sa.select(*he_cols(a)).select_from(e.join(a, on_a)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
-            selects.append(
-                sa.select(*he_cols(b))
-                .select_from(e.join(a, on_a).join(b, sa.and_(b.c.mesh_id == a.c.mesh_id, b.c.id == a.c.twin)))
-                .where(e.c.mesh_id == m, e.c.id.in_(ids))
-            )
-        elif name == "polygons":
-            selects.append(sa.select(*pair_cols(K_POLYGON, p)).where(p.c.mesh_id == m, p.c.id.in_(ids)))
-            ring = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.polygon.in_(ids))
-            selects.append(indexed_by(ring, h, "ix_halfedges_polygon"))
-        else:  # pragma: no cover - programming error
-            raise ValueError(f"unknown load part {name!r}")
-    return sa.union_all(*selects)
-
-
-class MeshSQL:
-    """The SQL a `UnitOfWork` needs: batched loads and set-based writes.
-
-    Parameters
-    ----------
-    statements : StatementCache
-        Compiled statements of the store's dialect.
-    cursor_factory : callable
-        Returns a DBAPI cursor on the store's connection.
+    ``inserted`` rows are full rows (id first, in the column order
+    `hestore.persistence` writes); ``updated`` rows are the id and the
+    changed reference columns; ``deleted`` holds ids.
     """
 
-    def __init__(self, statements: StatementCache, cursor_factory) -> None:
-        self.st = statements
-        self.cursor = cursor_factory
-        self._pg_sql: dict[tuple, str] = {}
-
-    # -- loads -----------------------------------------------------------
-
-    def load(self, mesh_id: int, want: dict[str, list[int]]) -> list[tuple]:
-        """Rows for every kind of request in ``want``, in one statement.
-
-        ``want`` maps a part to its ids: ``"vertices"``, ``"halfedges"``,
-        ``"stars"`` (vertex rows, their outgoing half-edges and those
-        half-edges' twins), ``"edges"`` (edge rows and both half-edges) and
-        ``"polygons"`` (polygon rows and their half-edges). Each row is
-        ``(kind, id, ...)`` with kind `K_VERTEX` ``(id, halfedge)``, `K_HALFEDGE`
-        ``(id, origin, next, prev, twin, edge, polygon)``, `K_EDGE` or
-        `K_POLYGON` ``(id, halfedge)``, padded with NULLs. Each id list is
-        bucketed (`hestore.statements.in_list_bucket`), so a handful of
-        compiled statements serve every operation.
-        """
-        parts = [(name, ids) for name, ids in want.items() if ids]
-        if not parts:
-            return []
-        sizes = tuple((name, in_list_bucket(len(ids))) for name, ids in parts)
-        if any(len(ids) > MAX_IN for _, ids in parts):
-            rows: list[tuple] = []
-            for name, ids in parts:
-                for start in range(0, len(ids), MAX_IN):
-                    rows.extend(self.load(mesh_id, {name: ids[start : start + MAX_IN]}))
-            return rows
-        stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
-        values: dict[str, Any] = {"m": mesh_id}
-        for (name, ids), (_, size) in zip(parts, sizes):
-            last = ids[-1]
-            for k in range(size):
-                values[f"{name}{k}"] = ids[k] if k < len(ids) else last
-        return stmt.rows(self.cursor(), values)
-
-    # -- writes ----------------------------------------------------------
-
-    def write(self, mesh_id: int, changes: dict[str, Any], counters: tuple, bump: int) -> None:
-        """Write one flush worth of changes and the mesh's counters.
-
-        One statement per table and kind of change: an ``executemany`` on
-        SQLite (in-process, so a row costs about a microsecond), and on
-        PostgreSQL a single statement over ``unnest``-ed arrays, so the server
-        does one set-based write instead of one round of work per row.
-        """
-        h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-        write = self._write_pg if self.st.dialect.name == "postgresql" else self._write_many
-        for table, key in ((v, "v"), (h, "he"), (e, "e"), (p, "p")):
-            write(mesh_id, table, "delete", ("id",), [(i,) for i in changes[key + "_del"]])
-        write(mesh_id, v, "insert", ("id", "halfedge", "x", "y", "z"), [(i, he) + tuple(xyz) for i, he, xyz in changes["v_ins"]])
-        write(mesh_id, h, "insert", _HE_COLS, [(i,) + r for i, r in changes["he_ins"]])
-        for table, key in ((e, "e"), (p, "p")):
-            write(mesh_id, table, "insert", ("id", "halfedge"), changes[key + "_ins"])
-        write(mesh_id, h, "update", ("id", "next", "prev", "polygon"), [(i, r[1], r[2], r[5]) for i, r in changes["he_upd"]])
-        write(mesh_id, v, "update", ("id", "halfedge"), changes["v_upd"])
-        ms = schema.meshes
-        upd_m = self.st.get(
-            "upd_mesh",
-            lambda: ms.update()
-            .where(ms.c.id == sa.bindparam("m"))
-            .values(
-                next_vertex=sa.bindparam("nv"),
-                next_edge=sa.bindparam("ne"),
-                next_polygon=sa.bindparam("np"),
-                revision=ms.c.revision + sa.bindparam("bump"),
-            ),
-        )
-        upd_m.run(self.cursor(), {"m": mesh_id, "nv": counters[0], "ne": counters[1], "np": counters[2], "bump": bump})
-
-    def _write_many(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
-        if not rows:
-            return
-
-        def build():
-            key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("id")
-            if what == "delete":
-                return table.delete().where(*key)
-            if what == "update":
-                return table.update().where(*key).values({c: sa.bindparam(c) for c in cols[1:]})
-            return table.insert().values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
-
-        stmt = self.st.get((what, table.name, cols), build)
-        stmt.run_many(self.cursor(), ({"m": mesh_id, **dict(zip(cols, row))} for row in rows))
-
-    def _write_pg(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
-        if not rows:
-            return
-        sql = self._pg_sql.get((what, table.name, cols))
-        if sql is None:
-            sql = self._pg_sql[(what, table.name, cols)] = _pg_statement(table, what, cols)
-        arrays = [list(column) for column in zip(*rows)]
-        self.cursor().execute(sql, [mesh_id, *arrays] if what == "insert" else [*arrays, mesh_id])
+    inserted: list
+    updated: list
+    deleted: list
 
 
-def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
-    """PostgreSQL SQL writing many rows of ``table`` from one array per column."""
-    q = '"{}"'.format
-    types = ["double precision" if isinstance(table.c[c].type, sa.Float) else "bigint" for c in cols]
-    arrays = ", ".join(f"%s::{t}[]" for t in types)
-    name = q(table.name)
-    if what == "delete":
-        return f"DELETE FROM {name} WHERE {q('id')} = ANY(%s::bigint[]) AND {q('mesh_id')} = %s"
-    if what == "insert":
-        columns = ", ".join(q(c) for c in ("mesh_id",) + tuple(cols))
-        return f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
-    sets = ", ".join(f"{q(c)} = u.{q(c)}" for c in cols[1:])
-    return (
-        f"UPDATE {name} AS t SET {sets} FROM unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
-        f"WHERE t.{q('mesh_id')} = %s AND t.{q('id')} = u.{q('id')}"
-    )
+class BulkRows(NamedTuple):
+    """Whole tables written at once by an import: ``{table name: {column: ndarray}}``.
+
+    ``progress(done, total)`` is called with rows written, if given.
+    """
+
+    tables: dict
+    progress: Callable[[int, int], object] | None = None
+
+
+@dataclass(frozen=True)
+class ChangeSet:
+    """What one flush writes for one mesh.
+
+    Attributes
+    ----------
+    mesh_id : int
+    vertices : RowChanges
+        Inserted ``(id, halfedge, x, y, z)``; updated ``(id, halfedge)``.
+    halfedges : RowChanges
+        Inserted ``(id, origin, next, prev, twin, edge, polygon)``; updated
+        ``(id, next, prev, polygon)`` (origin, twin and edge never change).
+    edges, polygons : RowChanges
+        Inserted ``(id, halfedge)``; never updated.
+    counters : tuple of int
+        ``(next_vertex, next_edge, next_polygon)`` after the flush.
+    bump : int
+        What the mesh's revision grows by: 1 in the first flush of a
+        transaction that changes the mesh, else 0.
+    bulk : BulkRows or None
+        Whole tables of an import.
+    drop : bool
+        The mesh is deleted with all its rows (nothing else is written).
+    """
+
+    mesh_id: int
+    vertices: RowChanges
+    halfedges: RowChanges
+    edges: RowChanges
+    polygons: RowChanges
+    counters: tuple[int, int, int]
+    bump: int
+    bulk: BulkRows | None = None
+    drop: bool = False
 
 
 class UnitOfWork:
-    """A write transaction's view of one mesh: cached rows, undo log, diff.
+    """A write transaction's view of one mesh: cached rows, undo log, change set.
 
     Parameters
     ----------
     mesh_id : int
         The mesh.
-    sql : MeshSQL
-        Loads and writes rows.
+    load : callable
+        ``load(mesh_id, want) -> rows``: `hestore.persistence.Persistence.load`.
     counters : tuple of int
         ``(next_vertex, next_edge, next_polygon)`` as stored.
     allow_loops, allow_multi_edges : bool
         The mesh's policy.
     """
 
-    def __init__(self, mesh_id: int, sql: MeshSQL, counters: tuple, allow_loops: bool, allow_multi_edges: bool) -> None:
+    def __init__(
+        self, mesh_id: int, load: Callable[[int, dict], list], counters: tuple, allow_loops: bool, allow_multi_edges: bool
+    ) -> None:
         self.mesh_id = mesh_id
-        self.sql = sql
+        self._load = load
         self.allow_loops = allow_loops
         self.allow_multi_edges = allow_multi_edges
         self.next_vertex, self.next_edge, self.next_polygon = counters
@@ -272,22 +171,30 @@ class UnitOfWork:
         self._dirty_v: set[int] = set()
         self._dirty_e: set[int] = set()
         self._dirty_p: set[int] = set()
+        self._bulk: BulkRows | None = None
+        self._drop = False
         self._undo: list | None = None
 
     # -- operations ------------------------------------------------------
 
-    def begin_operation(self) -> None:
-        """Start recording changes so that `abort_operation` can undo them."""
+    @contextmanager
+    def operation(self, *, keep: bool = True) -> Iterator["UnitOfWork"]:
+        """One atomic operation: its changes are kept, or all undone if it raises.
+
+        With ``keep=False`` they are undone either way (a dry run: the
+        ``can_*`` predicates run the operation itself and throw it away).
+        """
         self._undo = []
-
-    def end_operation(self) -> None:
-        """Keep the operation's changes."""
-        self._undo = None
-
-    def abort_operation(self) -> None:
-        """Undo every change since `begin_operation`, newest first."""
-        self.rollback_to(0)
-        self._undo = None
+        try:
+            yield self
+        except BaseException:
+            self.rollback_to(0)
+            raise
+        else:
+            if not keep:
+                self.rollback_to(0)
+        finally:
+            self._undo = None
 
     def mark(self) -> int:
         """A point inside the current operation that `rollback_to` can return to."""
@@ -313,6 +220,10 @@ class UnitOfWork:
                 entry[1].discard(entry[2])
             elif kind == "counters":
                 self.next_vertex, self.next_edge, self.next_polygon = entry[1]
+            elif kind == "bulk":
+                self._bulk = entry[1]
+            elif kind == "drop":
+                self._drop = entry[1]
 
     def _set(self, d: dict, key: int, value: Any) -> None:
         if self._undo is not None:
@@ -369,7 +280,7 @@ class UnitOfWork:
                     want[name] = list(dict.fromkeys(missing))
         if not want:
             return
-        rows = self.sql.load(self.mesh_id, want)
+        rows = self._load(self.mesh_id, want)
         he, he0 = self._he, self._he0
         by_kind = ((self._v, self._v0), None, (self._e, self._e0), (self._p, self._p0))
         outs: dict[int, set[int]] = {v: set() for v in star_ids}
@@ -429,9 +340,9 @@ class UnitOfWork:
             self.vhe(v)
         return self._out[v]
 
-    def corrupt(self, code: str, message: str) -> InvariantViolationError:
+    def corrupt(self, code: str, kind: str, element: int, message: str) -> InvariantViolationError:
         """The error to raise when stored data is found broken mid-operation."""
-        return InvariantViolationError([Violation(code, "halfedge", (), message)])
+        return InvariantViolationError([Violation(code, kind, (element,), f"{message}; run check()")])
 
     # -- writes ----------------------------------------------------------
 
@@ -532,60 +443,86 @@ class UnitOfWork:
         self._set(self._v, v, GONE)
         self._touch(self._dirty_v, v)
 
+    def insert_bulk(self, bulk: BulkRows, counters: tuple[int, int, int]) -> None:
+        """Stage whole tables of an import for the next flush, with the counters after them.
+
+        Only for a mesh without elements: the rows are written as given,
+        not merged with the cache.
+        """
+        self._save_counters()
+        if self._undo is not None:
+            self._undo.append(("bulk", self._bulk))
+        self._bulk = bulk
+        self.next_vertex, self.next_edge, self.next_polygon = counters
+
+    def drop(self) -> None:
+        """Delete the mesh with all its rows at the next flush."""
+        if self._undo is not None:
+            self._undo.append(("drop", self._drop))
+        self._drop = True
+
     # -- flushing --------------------------------------------------------
+
+    @property
+    def cached_halfedges(self) -> int:
+        """How many half-edge rows are cached (a bound on any walk among them)."""
+        return len(self._he)
 
     @property
     def dirty(self) -> bool:
         """Whether anything changed since the last flush."""
         return bool(
-            self._dirty_he or self._dirty_v or self._dirty_e or self._dirty_p
+            self._dirty_he or self._dirty_v or self._dirty_e or self._dirty_p or self._bulk is not None or self._drop
             or (self.next_vertex, self.next_edge, self.next_polygon) != self._counters0
         )
 
-    def changes(self) -> dict[str, list]:
-        """What a flush must write: inserts, updates and deletes per table."""
-        out: dict[str, list] = {
-            k: [] for k in ("he_ins", "he_upd", "he_del", "v_ins", "v_upd", "v_del", "e_ins", "e_del", "p_ins", "p_del")
-        }
-        for h in sorted(self._dirty_he):
-            cur, old = self._he[h], self._he0.get(h, NEW)
-            if old is NEW:
-                if cur is not GONE:
-                    out["he_ins"].append((h, cur))
-            elif cur is GONE:
-                out["he_del"].append(h)
-            elif cur != old:
-                out["he_upd"].append((h, cur))
-        for v in sorted(self._dirty_v):
-            cur, old = self._v[v], self._v0.get(v, NEW)
-            if old is NEW:
-                if cur is not GONE:
-                    out["v_ins"].append((v, cur, self._pos.get(v) or (None, None, None)))
-            elif cur is GONE:
-                out["v_del"].append(v)
-            elif cur != old:
-                out["v_upd"].append((v, cur))
-        for dirty, cur_d, old_d, key in ((self._dirty_e, self._e, self._e0, "e"), (self._dirty_p, self._p, self._p0, "p")):
-            for i in sorted(dirty):
-                cur, old = cur_d[i], old_d.get(i, NEW)
-                if old is NEW:
-                    if cur is not GONE:
-                        out[key + "_ins"].append((i, cur))
-                elif cur is GONE:
-                    out[key + "_del"].append(i)
-        return out
-
-    def flush(self, bump: int) -> None:
-        """Write everything changed since the last flush, then start afresh.
+    def changes(self, bump: int) -> ChangeSet:
+        """What a flush must write now: the difference between the cache and the database.
 
         Parameters
         ----------
         bump : int
-            How much to add to the mesh's revision (1 for the first flush of a
-            transaction that changes the mesh, else 0).
+            What the mesh's revision grows by (see `ChangeSet.bump`).
         """
         counters = (self.next_vertex, self.next_edge, self.next_polygon)
-        self.sql.write(self.mesh_id, self.changes(), counters, bump)
+        empty = RowChanges([], [], [])
+        if self._drop:
+            return ChangeSet(self.mesh_id, empty, empty, empty, empty, counters, bump, drop=True)
+        he = RowChanges([], [], [])
+        for h in sorted(self._dirty_he):
+            cur, old = self._he[h], self._he0.get(h, NEW)
+            if old is NEW:
+                if cur is not GONE:
+                    he.inserted.append((h,) + cur)
+            elif cur is GONE:
+                he.deleted.append(h)
+            elif cur != old:
+                he.updated.append((h, cur[NEXT], cur[PREV], cur[POLYGON]))
+        v = RowChanges([], [], [])
+        for i in sorted(self._dirty_v):
+            cur, old = self._v[i], self._v0.get(i, NEW)
+            if old is NEW:
+                if cur is not GONE:
+                    v.inserted.append((i, cur) + tuple(self._pos.get(i) or (None, None, None)))
+            elif cur is GONE:
+                v.deleted.append(i)
+            elif cur != old:
+                v.updated.append((i, cur))
+        pairs = []
+        for dirty, cur_d, old_d in ((self._dirty_e, self._e, self._e0), (self._dirty_p, self._p, self._p0)):
+            rows = RowChanges([], [], [])
+            for i in sorted(dirty):
+                cur, old = cur_d[i], old_d.get(i, NEW)
+                if old is NEW:
+                    if cur is not GONE:
+                        rows.inserted.append((i, cur))
+                elif cur is GONE:
+                    rows.deleted.append(i)
+            pairs.append(rows)
+        return ChangeSet(self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self._bulk)
+
+    def flushed(self) -> None:
+        """Record that the last `changes` are in the database: start the next diff from here."""
         for dirty, cur_d, old_d in (
             (self._dirty_he, self._he, self._he0),
             (self._dirty_v, self._v, self._v0),
@@ -597,4 +534,5 @@ class UnitOfWork:
                 old_d[i] = NEW if cur is GONE else cur
             dirty.clear()
         self._pos.clear()
-        self._counters0 = counters
+        self._bulk = None
+        self._counters0 = (self.next_vertex, self.next_edge, self.next_polygon)

@@ -45,7 +45,8 @@ One edge between two vertices (a wire edge: each half-edge is the other's
 ``next`` and ``prev``), checked from arrays:
 
 >>> import numpy as np
->>> from hestore.validation import TopologyArrays, check_arrays
+>>> from hestore.arrays import TopologyArrays
+>>> from hestore.validation import check_arrays
 >>> def a(*values):
 ...     return np.array(values, dtype=np.int64)
 >>> wire = TopologyArrays(
@@ -67,22 +68,23 @@ V_ROTATION vertex 1: rotating from halfedge 1 leaves the vertex: next(twin(1)) =
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
+from hestore.arrays import Index, TopologyArrays, cycles, first_per_group
 from hestore.columns import read_columns
-from hestore.errors import InvalidInputError
+from hestore.errors import InvalidInputError, Violation
+
+if TYPE_CHECKING:  # pragma: no cover
+    from hestore.mesh import Mesh
 
 __all__ = [
     "CODES",
     "CODE_DESCRIPTIONS",
     "KINDS",
-    "Violation",
-    "TopologyArrays",
     "load_arrays",
     "check_arrays",
     "check",
@@ -125,99 +127,6 @@ _CODE_RANK = {code: i for i, code in enumerate(CODES)}
 _KIND_RANK = {kind: i for i, kind in enumerate(KINDS)}
 
 
-@dataclass(frozen=True)
-class Violation:
-    """One broken invariant, about one element.
-
-    Parameters
-    ----------
-    code : str
-        The invariant's code, one of `CODES`.
-    kind : str
-        The kind of the offending element: ``"halfedge"``, ``"vertex"``,
-        ``"edge"`` or ``"polygon"``.
-    ids : tuple of int
-        The ids involved, the offending element's first; the others are the
-        elements (of any kind, see `message`) the reason refers to.
-    message : str
-        The reason, naming the elements involved.
-
-    Examples
-    --------
-    >>> v = Violation("H_TWIN", "halfedge", (12, 40, 41), "twin(twin(12)) = 41 (twin(12) = 40), expected 12")
-    >>> str(v)
-    'H_TWIN halfedge 12: twin(twin(12)) = 41 (twin(12) = 40), expected 12'
-    >>> v.id
-    12
-    """
-
-    code: str
-    kind: str
-    ids: tuple[int, ...]
-    message: str
-
-    @property
-    def id(self) -> int:
-        """The id of the offending element (``ids[0]``)."""
-        return self.ids[0]
-
-    def __str__(self) -> str:
-        return f"{self.code} {self.kind} {self.ids[0]}: {self.message}"
-
-
-class TopologyArrays(NamedTuple):
-    """The topology of one mesh as int64 arrays, one group per table.
-
-    Each table's arrays are sorted by its ``id`` column; ids are the stored
-    ids (not dense, not row numbers). NULL references are ``-1``.
-
-    Attributes
-    ----------
-    he_id, he_origin, he_next, he_prev, he_twin, he_edge, he_polygon : ndarray
-        The ``halfedges`` table; ``he_polygon`` is -1 for a free half-edge.
-    v_id, v_halfedge : ndarray
-        The ``vertices`` table; ``v_halfedge`` is -1 for an isolated vertex.
-    e_id, e_halfedge : ndarray
-        The ``edges`` table.
-    p_id, p_halfedge : ndarray
-        The ``polygons`` table.
-
-    Examples
-    --------
-    >>> arrays = TopologyArrays.empty()
-    >>> len(arrays.he_id), arrays.he_id.dtype
-    (0, dtype('int64'))
-    """
-
-    he_id: np.ndarray
-    he_origin: np.ndarray
-    he_next: np.ndarray
-    he_prev: np.ndarray
-    he_twin: np.ndarray
-    he_edge: np.ndarray
-    he_polygon: np.ndarray
-    v_id: np.ndarray
-    v_halfedge: np.ndarray
-    e_id: np.ndarray
-    e_halfedge: np.ndarray
-    p_id: np.ndarray
-    p_halfedge: np.ndarray
-
-    @classmethod
-    def empty(cls) -> "TopologyArrays":
-        """The arrays of a mesh without any element."""
-        return cls(*(np.empty(0, dtype=np.int64) for _ in cls._fields))
-
-
-# The tables' columns, grouped as TopologyArrays groups them.
-_GROUPS = (
-    ("halfedge", ("he_id", "he_origin", "he_next", "he_prev", "he_twin", "he_edge", "he_polygon")),
-    ("vertex", ("v_id", "v_halfedge")),
-    ("edge", ("e_id", "e_halfedge")),
-    ("polygon", ("p_id", "p_halfedge")),
-)
-
-
 # --------------------------------------------------------------------------
 # Loading
 
@@ -235,6 +144,7 @@ def _table_columns(table: sa.Table) -> list:
 
 
 _TABLES = (schema.halfedges, schema.vertices, schema.edges, schema.polygons)
+_REQUESTS = [(t, _table_columns(t)) for t in _TABLES]
 
 
 def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | None = None) -> TopologyArrays:
@@ -283,122 +193,13 @@ def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | Non
     >>> check_arrays(arrays)
     []
     """
-    tables = read_columns(connection, mesh_id, [(t, _table_columns(t)) for t in _TABLES], use_copy=use_copy)
+    tables = read_columns(connection, mesh_id, _REQUESTS, use_copy=use_copy)
     columns = [col for table in tables for col in table]
     return TopologyArrays(*columns)
 
 
 # --------------------------------------------------------------------------
 # Checking: helpers
-
-
-class _Index:
-    """Maps ids of one table (sorted, distinct) to row numbers.
-
-    Contiguous ids map by subtraction; ids spread over at most
-    ``_TABLE_SPREAD`` times their count through a lookup table; sparser ones
-    by `numpy.searchsorted` on the sorted references (sorted keys keep the
-    binary searches cache-friendly).
-    """
-
-    def __init__(self, ids: np.ndarray) -> None:
-        self.ids = ids
-        self.n = n = len(ids)
-        self.first = int(ids[0]) if n else 0
-        span = int(ids[-1]) - self.first + 1 if n else 0
-        self.contiguous = n > 0 and span == n
-        self.table = None
-        if n and not self.contiguous and span <= _TABLE_SPREAD * n + 1024:
-            self.table = np.full(span, -1, dtype=np.int32 if n < 2**31 else np.int64)
-            self.table[ids - self.first] = np.arange(n, dtype=self.table.dtype)
-
-    def find(self, refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Row of each reference, and whether it exists.
-
-        Rows of missing references are 0 (a valid index when the table is not
-        empty); use them only where the returned mask is True.
-        """
-        n = self.n
-        if n == 0:
-            return np.zeros(len(refs), dtype=np.int64), np.zeros(len(refs), dtype=bool)
-        if self.contiguous or self.table is not None:
-            rows = refs - self.first
-            ok = (rows >= 0) & (rows < (n if self.contiguous else len(self.table)))
-            rows[~ok] = 0
-            if self.table is not None:
-                rows = self.table[rows].astype(np.int64)
-                ok &= rows >= 0
-                rows[~ok] = 0
-            return rows, ok
-        order = np.argsort(refs, kind="stable")
-        keys = refs[order]
-        found = np.searchsorted(self.ids, keys)
-        np.minimum(found, n - 1, out=found)
-        hit = self.ids[found] == keys
-        found[~hit] = 0
-        rows = np.empty(len(refs), dtype=np.int64)
-        ok = np.empty(len(refs), dtype=bool)
-        rows[order] = found
-        ok[order] = hit
-        return rows, ok
-
-
-#: Ids spread over at most this many times their count use a lookup table.
-_TABLE_SPREAD = 8
-
-
-def _cycles(f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Label the cycles of the function ``i -> f[i]`` on ``range(len(f))``.
-
-    Pointer jumping: after round k, ``label[i]`` is the least index among
-    ``i, f(i), ..., f^(2^k - 1)(i)`` and ``jump = f^(2^k)``; ``ceil(log2 n)``
-    rounds cover every orbit. When ``f`` is a permutation the rounds stop as
-    soon as no label changes (then every window already holds its cycle's
-    minimum).
-
-    Returns
-    -------
-    label : ndarray
-        For an element on a cycle: the least index of its cycle. (For an
-        element on a tail leading into a cycle, the least index of its orbit.)
-    on_cycle : ndarray of bool
-        Whether the element lies on a cycle (``f`` need not be a permutation).
-    end : ndarray
-        An element of the cycle that the orbit of each element ends in (the
-        element itself when it is on a cycle).
-    """
-    n = len(f)
-    label = np.arange(n, dtype=np.int64)
-    if n == 0:
-        return label, np.zeros(0, dtype=bool), label
-    is_permutation = bool((np.bincount(f, minlength=n) == 1).all())
-    jump = f
-    reach = 1  # jump == f^reach
-    while reach < n:
-        new = np.minimum(label, label[jump])
-        if is_permutation and np.array_equal(new, label):
-            break
-        label = new
-        jump = jump[jump]
-        reach *= 2
-    if is_permutation:
-        return label, np.ones(n, dtype=bool), np.arange(n, dtype=np.int64)
-    # jump = f^m with m >= n: its image is exactly the set of cyclic elements.
-    on_cycle = np.zeros(n, dtype=bool)
-    on_cycle[jump] = True
-    return label, on_cycle, np.where(on_cycle, np.arange(n, dtype=np.int64), jump)
-
-
-def _first_per_group(groups: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
-    """For each group ``0 <= g < n``, the first of its ``values`` (in order), else -1."""
-    out = np.full(n, -1, dtype=np.int64)
-    if len(groups):
-        order = np.argsort(groups, kind="stable")
-        g = groups[order]
-        first = np.ones(len(g), dtype=bool)
-        first[1:] = g[1:] != g[:-1]
-        out[g[first]] = values[order][first]
-    return out
 
 
 def _null(value: int) -> str:
@@ -426,7 +227,7 @@ class _Batch(NamedTuple):
 def _normalized(arrays: TopologyArrays) -> TopologyArrays:
     """Int64 arrays, each table sorted by id; raises on malformed input."""
     out = {}
-    for kind, names in _GROUPS:
+    for kind, names in TopologyArrays.GROUPS:
         cols = [np.asarray(getattr(arrays, name)) for name in names]
         for name, col in zip(names, cols):
             if col.ndim != 1:
@@ -466,7 +267,7 @@ class _Checker:
         self.allow_multi_edges = allow_multi_edges
         self.nH, self.nV, self.nE, self.nP = len(a.he_id), len(a.v_id), len(a.e_id), len(a.p_id)
         self.hrow = np.arange(self.nH, dtype=np.int64)
-        he, vertex, edge, polygon = _Index(a.he_id), _Index(a.v_id), _Index(a.e_id), _Index(a.p_id)
+        he, vertex, edge, polygon = Index(a.he_id), Index(a.v_id), Index(a.e_id), Index(a.p_id)
         self.nxt, self.nxt_ok = he.find(a.he_next)
         self.prv, self.prv_ok = he.find(a.he_prev)
         self.tw, self.tw_ok = he.find(a.he_twin)
@@ -668,7 +469,7 @@ class _Checker:
         same[i] = self.pol_ok[i] & (a.he_polygon[n] == a.he_polygon[i])
         same &= ~broken
         exits = self.pol_ok & ~same & ~broken
-        label, on_cycle, end = _cycles(np.where(same, self.nxt, self.hrow))
+        label, on_cycle, end = cycles(np.where(same, self.nxt, self.hrow))
         touched = np.zeros(nP, dtype=bool)
         touched[self.pol[self.pol_ok & broken]] = True
         keep = ~broken[end[h0]] & ~touched[k]
@@ -707,7 +508,7 @@ class _Checker:
         j = np.flatnonzero(self.pol_ok)
         q = self.pol[j]
         off = (loop_of[q] >= 0) & ~(on_cycle[j] & (label[j] == loop_of[q]))
-        stray = _first_per_group(q[off], he[j[off]], nP)
+        stray = first_per_group(q[off], he[j[off]], nP)
         loop_batch = _Batch(
             "P_LOOP",
             "polygon",
@@ -728,7 +529,7 @@ class _Checker:
         wanted[k] = True
         j = np.flatnonzero(self.org_ok)
         j = j[wanted[self.org[j]]]
-        example = _first_per_group(self.org[j], he[j], self.nV)
+        example = first_per_group(self.org[j], he[j], self.nV)
         null_batch = _Batch(
             "V_HALFEDGE",
             "vertex",
@@ -772,7 +573,7 @@ class _Checker:
         same = np.zeros(nH, dtype=bool)
         same[i] = self.org[r] == self.org[i]
         exits = ~broken & ~same
-        label, on_cycle, end = _cycles(np.where(same, rot, self.hrow))
+        label, on_cycle, end = cycles(np.where(same, rot, self.hrow))
         k, h0 = self.good_vertices()
         touched = np.zeros(nV, dtype=bool)
         touched[self.org[self.org_ok & broken]] = True
@@ -812,7 +613,7 @@ class _Checker:
         j = np.flatnonzero(self.org_ok)
         w = self.org[j]
         off = (ring_of[w] >= 0) & ~(on_cycle[j] & (label[j] == ring_of[w]))
-        missed = _first_per_group(w[off], he[j[off]], nV)
+        missed = first_per_group(w[off], he[j[off]], nV)
         ring_batch = _Batch(
             "V_ROTATION",
             "vertex",
@@ -837,7 +638,7 @@ class _Checker:
         wanted[k] = True
         j = np.flatnonzero(free_out)
         j = j[wanted[self.org[j]]]
-        example = _first_per_group(self.org[j], he[j], self.nV)
+        example = first_per_group(self.org[j], he[j], self.nV)
         return [
             _Batch(
                 "V_BOUNDARY",
@@ -1025,12 +826,12 @@ def check_arrays(
     return result
 
 
-def check(mesh: Any) -> list[Violation]:
+def check(mesh: "Mesh") -> list[Violation]:
     """Check a stored mesh: what `Mesh.check` returns.
 
-    Reads the mesh's tables with `load_arrays` on a connection of the mesh's
-    store (after its pending writes are flushed) and checks them with
-    `check_arrays` under the mesh's policy.
+    Reads the mesh's tables in one snapshot through its store's session
+    (after pending writes are flushed, so a block sees its own edits) and
+    checks them with `check_arrays` under the mesh's policy.
 
     Parameters
     ----------
@@ -1042,6 +843,11 @@ def check(mesh: Any) -> list[Violation]:
     list of Violation
         Empty when every invariant holds.
 
+    Raises
+    ------
+    hestore.MeshNotFoundError
+        The mesh has been deleted.
+
     Examples
     --------
     >>> import hestore
@@ -1051,6 +857,7 @@ def check(mesh: Any) -> list[Violation]:
     []
     >>> store.close()
     """
-    with mesh._store._read() as conn:
-        arrays = load_arrays(conn, mesh._id)
+    with mesh.session.snapshot(mesh.ref) as snap:
+        tables = snap.columns(_REQUESTS)
+    arrays = TopologyArrays(*(col for table in tables for col in table))
     return check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)

@@ -1,0 +1,255 @@
+"""The SQL of the unit of work: batched loads of a mesh's rows, set-based writes of its changes.
+
+This module owns every statement that moves a `hestore.unitofwork.UnitOfWork`'s
+rows between the database and memory (SQLAlchemy's ``persistence`` to the
+unit of work): `Persistence.load` fetches stars, rings and rows by id in one
+``UNION ALL``; `Persistence.write` turns one `hestore.unitofwork.ChangeSet`
+into one statement per table and kind of change — an ``executemany`` on
+SQLite, a single statement over ``unnest``-ed arrays on PostgreSQL, and the
+binary ``COPY`` / multi-row ``INSERT`` paths of `hestore.columns` for the
+whole tables of a bulk import. It also reads and locks a mesh's catalogue row
+(`Persistence.mesh_row`). It is used by `hestore.session` only; it knows
+nothing of transactions.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import sqlalchemy as sa
+
+from hestore import schema
+from hestore.columns import write_columns
+from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
+from hestore.unitofwork import HE_COLUMNS, K_EDGE, K_HALFEDGE, K_POLYGON, K_VERTEX, ChangeSet
+
+__all__ = ["Persistence"]
+
+
+def _load_statement(sizes: tuple) -> sa.CompoundSelect:
+    """The ``UNION ALL`` behind `Persistence.load` for the given part sizes."""
+    h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
+    null = sa.cast(sa.null(), sa.BigInteger)
+    m = sa.bindparam("m")
+
+    def kind(k: int):
+        return sa.literal_column(str(k), sa.Integer)
+
+    def he_cols(t):
+        return [kind(K_HALFEDGE)] + [t.c[name] for name in HE_COLUMNS]
+
+    def pair_cols(k, t):
+        return [kind(k), t.c.id, t.c.halfedge] + [null] * 5
+
+    selects = []
+    for name, size in sizes:
+        ids = [sa.bindparam(f"{name}{i}") for i in range(size)]
+        if name == "vertices":
+            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
+        elif name == "halfedges":
+            selects.append(sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.id.in_(ids)))
+        elif name == "stars":
+            s, t = h.alias("s"), h.alias("t")
+            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
+            out = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.origin.in_(ids))
+            selects.append(indexed_by(out, h, "ix_halfedges_origin"))
+            twins = (
+                sa.select(*he_cols(t))
+                .select_from(s.join(t, sa.and_(t.c.mesh_id == s.c.mesh_id, t.c.id == s.c.twin)))
+                .where(s.c.mesh_id == m, s.c.origin.in_(ids))
+            )
+            selects.append(indexed_by(twins, s, "ix_halfedges_origin"))
+        elif name == "edges":
+            a, b = h.alias("a"), h.alias("b")
+            selects.append(sa.select(*pair_cols(K_EDGE, e)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
+            on_a = sa.and_(a.c.mesh_id == e.c.mesh_id, a.c.id == e.c.halfedge)
+            selects.append(sa.select(*he_cols(a)).select_from(e.join(a, on_a)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
+            selects.append(
+                sa.select(*he_cols(b))
+                .select_from(e.join(a, on_a).join(b, sa.and_(b.c.mesh_id == a.c.mesh_id, b.c.id == a.c.twin)))
+                .where(e.c.mesh_id == m, e.c.id.in_(ids))
+            )
+        elif name == "polygons":
+            selects.append(sa.select(*pair_cols(K_POLYGON, p)).where(p.c.mesh_id == m, p.c.id.in_(ids)))
+            ring = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.polygon.in_(ids))
+            selects.append(indexed_by(ring, h, "ix_halfedges_polygon"))
+        else:  # pragma: no cover - programming error
+            raise ValueError(f"unknown load part {name!r}")
+    return sa.union_all(*selects)
+
+
+def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
+    """PostgreSQL SQL writing many rows of ``table`` from one array per column."""
+    q = '"{}"'.format
+    types = ["double precision" if isinstance(table.c[c].type, sa.Float) else "bigint" for c in cols]
+    arrays = ", ".join(f"%s::{t}[]" for t in types)
+    name = q(table.name)
+    if what == "delete":
+        return f"DELETE FROM {name} WHERE {q('id')} = ANY(%s::bigint[]) AND {q('mesh_id')} = %s"
+    if what == "insert":
+        columns = ", ".join(q(c) for c in ("mesh_id",) + tuple(cols))
+        return f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
+    sets = ", ".join(f"{q(c)} = u.{q(c)}" for c in cols[1:])
+    return (
+        f"UPDATE {name} AS t SET {sets} FROM unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
+        f"WHERE t.{q('mesh_id')} = %s AND t.{q('id')} = u.{q('id')}"
+    )
+
+
+_VERTEX_INSERT = ("id", "halfedge", "x", "y", "z")
+_PAIR = ("id", "halfedge")
+_HE_UPDATE = ("id", "next", "prev", "polygon")
+
+
+class Persistence:
+    """The SQL a `hestore.unitofwork.UnitOfWork` needs: batched loads and set-based writes.
+
+    Parameters
+    ----------
+    statements : StatementCache
+        Compiled statements of the session's dialect.
+    cursor : callable
+        Returns the DBAPI cursor of the session's connection.
+    """
+
+    def __init__(self, statements: StatementCache, cursor: Callable[[], Any]) -> None:
+        self.st = statements
+        self.cursor = cursor
+        self._pg = statements.dialect.name == "postgresql"
+        self._pg_sql: dict[tuple, str] = {}
+
+    # -- the catalogue row ------------------------------------------------
+
+    def mesh_row(self, mesh_id: int, *, lock: bool) -> tuple | None:
+        """``(next_vertex, next_edge, next_polygon, allow_loops, allow_multi_edges)``, or None.
+
+        With ``lock`` the row is locked for the rest of the transaction
+        (``SELECT ... FOR UPDATE``; the caller sets the lock timeout).
+        """
+        m = schema.meshes
+
+        def build():
+            stmt = sa.select(
+                m.c.next_vertex, m.c.next_edge, m.c.next_polygon, m.c.allow_loops, m.c.allow_multi_edges
+            ).where(m.c.id == sa.bindparam("m"))
+            return stmt.with_for_update() if lock else stmt
+
+        rows = self.st.get(("mesh_row", lock), build).rows(self.cursor(), {"m": mesh_id})
+        return rows[0] if rows else None
+
+    # -- loads -----------------------------------------------------------
+
+    def load(self, mesh_id: int, want: dict[str, list[int]]) -> list[tuple]:
+        """Rows for every kind of request in ``want``, in one statement.
+
+        ``want`` maps a part to its ids: ``"vertices"``, ``"halfedges"``,
+        ``"stars"`` (vertex rows, their outgoing half-edges and those
+        half-edges' twins), ``"edges"`` (edge rows and both half-edges) and
+        ``"polygons"`` (polygon rows and their half-edges). Each row is
+        ``(kind, id, ...)`` with kind `K_VERTEX` ``(id, halfedge)``, `K_HALFEDGE`
+        ``(id, origin, next, prev, twin, edge, polygon)``, `K_EDGE` or
+        `K_POLYGON` ``(id, halfedge)``, padded with NULLs. Each id list is
+        bucketed (`hestore.statements.in_list_bucket`), so a handful of
+        compiled statements serve every operation.
+        """
+        parts = [(name, ids) for name, ids in want.items() if ids]
+        if not parts:
+            return []
+        if any(len(ids) > MAX_IN for _, ids in parts):
+            rows: list[tuple] = []
+            for name, ids in parts:
+                for start in range(0, len(ids), MAX_IN):
+                    rows.extend(self.load(mesh_id, {name: ids[start : start + MAX_IN]}))
+            return rows
+        sizes = tuple((name, in_list_bucket(len(ids))) for name, ids in parts)
+        stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
+        values: dict[str, Any] = {"m": mesh_id}
+        for (name, ids), (_, size) in zip(parts, sizes):
+            last = ids[-1]
+            for k in range(size):
+                values[f"{name}{k}"] = ids[k] if k < len(ids) else last
+        return stmt.rows(self.cursor(), values)
+
+    # -- writes ----------------------------------------------------------
+
+    def write(self, changes: ChangeSet) -> None:
+        """Write one flush worth of changes, then the mesh's counters and revision.
+
+        One statement per table and kind of change: an ``executemany`` on
+        SQLite (in-process, so a row costs about a microsecond), and on
+        PostgreSQL a single statement over ``unnest``-ed arrays, so the server
+        does one set-based write instead of one round of work per row. Whole
+        tables of a bulk import go through `hestore.columns.write_columns`.
+        A dropped mesh loses every row and its catalogue row.
+        """
+        mesh_id = changes.mesh_id
+        if changes.drop:
+            for table in schema.ELEMENT_TABLES:
+                self._run(("drop", table.name), lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m")), mesh_id)
+            ms = schema.meshes
+            self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), mesh_id)
+            return
+        h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
+        write = self._write_pg if self._pg else self._write_many
+        for table, rows in ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons)):
+            write(mesh_id, table, "delete", ("id",), [(i,) for i in rows.deleted])
+        write(mesh_id, v, "insert", _VERTEX_INSERT, changes.vertices.inserted)
+        write(mesh_id, h, "insert", HE_COLUMNS, changes.halfedges.inserted)
+        write(mesh_id, e, "insert", _PAIR, changes.edges.inserted)
+        write(mesh_id, p, "insert", _PAIR, changes.polygons.inserted)
+        write(mesh_id, h, "update", _HE_UPDATE, changes.halfedges.updated)
+        write(mesh_id, v, "update", _PAIR, changes.vertices.updated)
+        if changes.bulk is not None:
+            self._write_bulk(mesh_id, changes.bulk)
+        ms = schema.meshes
+        upd_m = self.st.get(
+            "upd_mesh",
+            lambda: ms.update()
+            .where(ms.c.id == sa.bindparam("m"))
+            .values(
+                next_vertex=sa.bindparam("nv"),
+                next_edge=sa.bindparam("ne"),
+                next_polygon=sa.bindparam("np"),
+                revision=ms.c.revision + sa.bindparam("bump"),
+            ),
+        )
+        nv, ne, np_ = changes.counters
+        upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "bump": changes.bump})
+
+    def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
+        self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
+
+    def _write_bulk(self, mesh_id: int, bulk) -> None:
+        total = sum(len(columns["id"]) for columns in bulk.tables.values())
+        done = 0
+        for name, columns in bulk.tables.items():
+            report = None
+            if bulk.progress is not None:
+                report = lambda rows, base=done: bulk.progress(base + rows, total)  # noqa: E731
+            write_columns(self.cursor(), self.st.dialect, schema.metadata.tables[name], mesh_id, columns, progress=report)
+            done += len(columns["id"])
+
+    def _write_many(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
+        if not rows:
+            return
+
+        def build():
+            key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("id")
+            if what == "delete":
+                return table.delete().where(*key)
+            if what == "update":
+                return table.update().where(*key).values({c: sa.bindparam(c) for c in cols[1:]})
+            return table.insert().values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
+
+        stmt = self.st.get((what, table.name, cols), build)
+        stmt.run_many(self.cursor(), ({"m": mesh_id, **dict(zip(cols, row))} for row in rows))
+
+    def _write_pg(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
+        if not rows:
+            return
+        sql = self._pg_sql.get((what, table.name, cols))
+        if sql is None:
+            sql = self._pg_sql[(what, table.name, cols)] = _pg_statement(table, what, cols)
+        arrays = [list(column) for column in zip(*rows)]
+        self.cursor().execute(sql, [mesh_id, *arrays] if what == "insert" else [*arrays, mesh_id])
+

@@ -1,0 +1,623 @@
+"""The session: hestore's one door to the database.
+
+This module owns everything that touches a connection: the engine and its
+connections, the transaction and savepoint scopes, the per-mesh writer locks,
+the units of work and their flushing, the committed-read connection, the
+identity of meshes across rollbacks, the thread a store belongs to, and the
+translation of every driver error into a typed `hestore.errors.StoreError`.
+Every other module reads and writes through a `Session` (`Store.session`),
+through the small interface below, and never through its private members.
+
+A session's connection runs its driver in autocommit mode and hestore issues
+``BEGIN``/``COMMIT``/``SAVEPOINT`` itself, which gives exactly SPEC §4 on
+both databases:
+
+* outside a block, every read is one autocommitted statement (it sees the
+  latest commit and holds no snapshot), and every edit is its own write
+  transaction (`editing` opens and commits it);
+* a block (`transaction`) is one write transaction — SQLite ``BEGIN
+  IMMEDIATE``, so the database's single writer lock is taken up front;
+  PostgreSQL ``BEGIN`` — and nested blocks are savepoints. There is one
+  scope, written once (``_scope``): the outermost level begins and commits or
+  rolls back, a nested level is a savepoint (`transaction`, `scope`) or,
+  for a single edit, the unit of work's undo log (`editing`), which costs no
+  round trip;
+* before its first change to a mesh a write transaction locks that mesh's
+  row (PostgreSQL ``SELECT ... FOR UPDATE``, in a savepoint inside a block
+  so that a lock timeout leaves the block usable), so writers to one mesh
+  are serialized and writers to different meshes are not; a lock not granted
+  within ``busy_timeout`` is `StoreBusyError`;
+* edits collect in one `hestore.unitofwork.UnitOfWork` per mesh and are
+  flushed — handed to `hestore.persistence` as one `ChangeSet` each —
+  before any read, before a savepoint and at commit. The mesh's revision
+  grows by one in the first flush of a transaction that changes it;
+* `dry_run` runs an operation and throws it away without the writer lock:
+  outside a block in a read-only transaction (which never waits for a
+  writer), inside one in the block itself.
+
+A `MeshRef` is a mesh's identity for this session. A mesh created in a
+transaction that is rolled back dies with it: its id may be handed out again
+(SQLite reuses it), and every handle of the dead mesh raises
+`MeshNotFoundError` instead of reaching the new one.
+
+A session belongs to the thread that opened it. Any use from another thread
+raises `WrongThreadError` before the connection is touched.
+
+Private reach: none. `hestore.columns` and `hestore.persistence` are handed
+the session's DBAPI cursor; nothing outside this module holds it.
+"""
+
+from __future__ import annotations
+
+import threading
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator
+
+import sqlalchemy as sa
+
+from hestore import drivers, migrate, schema, urls
+from hestore.columns import read_columns, read_snapshot
+from hestore.drivers import is_driver_error
+from hestore.errors import (
+    HestoreError,
+    MeshNotFoundError,
+    SchemaVersionError,
+    StoreError,
+    WrongThreadError,
+)
+from hestore.persistence import Persistence
+from hestore.statements import StatementCache
+from hestore.unitofwork import UnitOfWork
+
+__all__ = ["Session", "MeshRef", "Snapshot"]
+
+class MeshRef:
+    """A mesh's identity for one session: its id, its name, and whether it still exists here.
+
+    All handles of one mesh share its `MeshRef`. ``alive`` turns False when
+    the transaction that created the mesh is rolled back.
+    """
+
+    __slots__ = ("id", "name", "alive")
+
+    def __init__(self, mesh_id: int, name: str) -> None:
+        self.id = mesh_id
+        self.name = name
+        self.alive = True
+
+    def __repr__(self) -> str:
+        return f"MeshRef({self.id}, {self.name!r}{'' if self.alive else ', dead'})"
+
+
+class Snapshot:
+    """Reads of one mesh that see one consistent state: what `Session.snapshot` yields.
+
+    Attributes
+    ----------
+    revision : int
+        The mesh's revision in this state.
+    isolated : bool
+        Whether the state is committed data only (False: a block's own
+        state, seen through an in-memory store's single connection).
+    """
+
+    def __init__(self, connection: sa.Connection, mesh_id: int, revision: int, isolated: bool) -> None:
+        self._connection = connection
+        self._mesh_id = mesh_id
+        self.revision = revision
+        self.isolated = isolated
+
+    def columns(self, requests) -> list:
+        """Columns of several tables of the mesh: `hestore.columns.read_columns`."""
+        return read_columns(self._connection, self._mesh_id, requests)
+
+
+class _TracingCursor:
+    """A DBAPI cursor that reports every statement before running it."""
+
+    def __init__(self, cursor: Any, callback: Callable[[str], object]) -> None:
+        self._cursor = cursor
+        self._callback = callback
+
+    def execute(self, sql, *args, **kwargs):
+        self._callback(sql)
+        return self._cursor.execute(sql, *args, **kwargs)
+
+    def executemany(self, sql, *args, **kwargs):
+        self._callback(sql)
+        return self._cursor.executemany(sql, *args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._cursor, name)
+
+
+class Session:
+    """The connection(s), transactions, locks and units of work of one `Store`.
+
+    Parameters
+    ----------
+    url : sqlalchemy.engine.URL
+        A URL `hestore.urls.resolve` accepted.
+    busy_timeout : float
+        Seconds to wait for another writer's lock before `StoreBusyError`.
+
+    Raises
+    ------
+    StoreError
+        The database cannot be opened or used (not a database, unreachable,
+        tables of another application in the way, driver not installed).
+    SchemaVersionError
+        The database needs ``hestore db upgrade`` (or a newer hestore).
+
+    Examples
+    --------
+    >>> from hestore import urls
+    >>> session = Session(urls.resolve("sqlite://"), busy_timeout=1.0)
+    >>> with session.reading() as conn:
+    ...     conn.execute(sa.text("SELECT count(*) FROM meshes")).scalar()
+    0
+    >>> session.close()
+    """
+
+    def __init__(self, url: sa.engine.URL, *, busy_timeout: float) -> None:
+        self.url = url
+        self.shown_url = urls.shown(url)
+        self.busy_timeout = float(busy_timeout)
+        self.is_sqlite = url.get_backend_name() == "sqlite"
+        self.is_memory = urls.is_memory(url)
+        #: Derived data kept for the session's lifetime (graph views), dropped by `close`.
+        self.caches: dict[str, Any] = {}
+        self._thread = threading.get_ident()
+        self._closed = True
+        self._scopes: list[str] = []
+        self._uows: dict[int, UnitOfWork] = {}
+        self._locked: set[int] = set()
+        self._changed: set[int] = set()
+        self._refs: dict[int, MeshRef] = {}
+        self._born: list[MeshRef] = []
+        self._failed = False
+        self._engine = drivers.make_engine(url, busy_timeout=self.busy_timeout)
+        with self._guard(f"cannot open {self.shown_url}"):
+            self._conn = self._engine.connect()
+            self._raw = self._conn.connection.dbapi_connection
+            self._cur = self._raw.cursor()
+        self._closed = False
+        self.dialect = self._engine.dialect
+        self.statements = StatementCache(self.dialect)
+        self._persistence = Persistence(self.statements, lambda: self._cur)
+        try:
+            self._ensure_schema()
+        except BaseException:
+            self.close()
+            raise
+
+    def __repr__(self) -> str:
+        return f"Session({self.shown_url!r})"
+
+    # -- who may use it ------------------------------------------------------
+
+    def check(self) -> None:
+        """Raise unless the session is open and this is the thread that opened it."""
+        if self._thread != threading.get_ident():
+            raise WrongThreadError(
+                f"the store on {self.shown_url} was opened in thread {self._thread} and is used from thread "
+                f"{threading.get_ident()}; a store belongs to one thread: open one per thread"
+            )
+        if self._closed:
+            raise HestoreError(f"the store on {self.shown_url} is closed; nothing more can be read or written through it")
+
+    def _alive(self, ref: MeshRef) -> None:
+        self.check()
+        if not ref.alive:
+            raise self._dead(ref)
+
+    @staticmethod
+    def _dead(ref: MeshRef) -> MeshNotFoundError:
+        return MeshNotFoundError(
+            f"mesh {ref.name!r} no longer exists: the transaction that created it was rolled back"
+        )
+
+    def missing(self, ref: MeshRef) -> MeshNotFoundError:
+        """The error for a mesh that is not in the database (deleted, or never committed)."""
+        return MeshNotFoundError(f"mesh {ref.name!r} has been deleted from {self.shown_url}")
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close` has been called."""
+        return self._closed
+
+    # -- mesh identities -----------------------------------------------------
+
+    def ref(self, mesh_id: int, name: str) -> MeshRef:
+        """The identity of a stored mesh, shared by every handle of it in this session."""
+        ref = self._refs.get(mesh_id)
+        if ref is None or not ref.alive:
+            ref = self._refs[mesh_id] = MeshRef(mesh_id, name)
+        else:
+            ref.name = name
+        return ref
+
+    def new_ref(self, mesh_id: int, name: str) -> MeshRef:
+        """The identity of a mesh created in the open transaction: it dies if that is rolled back."""
+        ref = self._refs[mesh_id] = MeshRef(mesh_id, name)
+        self._born.append(ref)
+        return ref
+
+    def _kill_born(self, keep: int) -> None:
+        for ref in self._born[keep:]:
+            ref.alive = False
+            if self._refs.get(ref.id) is ref:
+                del self._refs[ref.id]
+        del self._born[keep:]
+
+    # -- errors ----------------------------------------------------------------
+
+    def _translated(self, exc: BaseException, what: str) -> StoreError:
+        return drivers.translate(exc, what, self.shown_url)
+
+    def _guard(self, what: str):
+        return drivers.guard(what, self.shown_url)
+
+    # -- raw transaction control ----------------------------------------------
+
+    def _exec(self, sql: str) -> None:
+        self._cur.execute(sql)
+
+    def _in_txn(self) -> bool:
+        if self.is_sqlite:
+            return self._raw.in_transaction
+        return self._raw.info.transaction_status != 0  # psycopg: 0 = IDLE
+
+    def _begin(self, sql: str | None = None) -> None:
+        with self._guard("could not start a transaction"):
+            self._exec(sql or ("BEGIN IMMEDIATE" if self.is_sqlite else "BEGIN"))
+
+    def _commit(self) -> None:
+        with self._guard("could not commit"):
+            if self._in_txn():
+                self._exec("COMMIT")
+        self._forget()
+        self._born.clear()
+
+    def _rollback(self) -> None:
+        try:
+            if not self._closed and self._in_txn():
+                self._exec("ROLLBACK")
+        except Exception:  # noqa: BLE001 - the error being handled matters more
+            # A connection that cannot roll back (one interrupted mid-statement)
+            # is dropped: the server rolls back what it held, nothing stays half-done.
+            self._forget()
+            self._kill_born(0)
+            self.close()
+            return
+        self._forget()
+        self._kill_born(0)
+
+    def _forget(self) -> None:
+        self._uows.clear()
+        self._locked.clear()
+        self._changed.clear()
+        self._failed = False
+
+    def _ensure_schema(self) -> None:
+        with self._guard(f"cannot read the schema of {self.shown_url}"):
+            state = migrate.schema_state(self._conn)
+        if state.status == "new":
+            with self.scope(), self._guard(f"cannot create hestore's tables in {self.shown_url}"):
+                migrate.upgrade(self._conn)
+        elif state.status == "foreign":
+            raise StoreError(
+                f"{self.shown_url} holds tables hestore did not create ({', '.join(state.foreign_tables)}); "
+                "hestore will not use or change them: open another database"
+            )
+        elif state.status != "head":
+            raise SchemaVersionError(
+                f"{self.shown_url} is at schema revision {state.current}, but this hestore needs {state.head}: "
+                + (
+                    "run `hestore db upgrade` (hestore --db URL db upgrade)"
+                    if state.status == "behind"
+                    else "it was written by a newer hestore"
+                )
+            )
+
+    def close(self) -> None:
+        """Roll back anything uncommitted, close the connection, drop the caches."""
+        if self._closed:
+            return
+        if self._thread != threading.get_ident():
+            self.check()
+        self._closed = True
+        try:
+            if self._in_txn():
+                self._exec("ROLLBACK")
+        except Exception:  # noqa: BLE001 - closing anyway; the database rolls back on disconnect
+            pass
+        finally:
+            self._forget()
+            self._kill_born(0)
+            self.caches.clear()
+            self._conn.close()
+            self._engine.dispose()
+
+    # -- scopes ----------------------------------------------------------------
+
+    @property
+    def in_transaction(self) -> bool:
+        """Whether a transaction is open (a block, or an operation running)."""
+        return bool(self._scopes)
+
+    @contextmanager
+    def _scope(self, kind: str, *, savepoint: bool) -> Iterator[sa.Connection]:
+        """The one transaction scope.
+
+        Outermost: a write transaction, committed when the body succeeds and
+        rolled back when it raises. Nested: a savepoint (``savepoint``) or
+        nothing at all (the caller's unit of work undoes its own changes).
+        """
+        self.check()
+        if not self._scopes:
+            self._begin()
+            self._scopes.append(kind)
+            try:
+                yield self._conn
+                self.check()
+                with self._guard("could not write"):
+                    self._flush()
+                self._commit()
+            except BaseException as exc:
+                self._rollback()
+                if is_driver_error(exc):
+                    raise self._translated(exc, "the transaction failed and was rolled back") from exc
+                raise
+            finally:
+                self._scopes.pop()
+            return
+        if self._failed:
+            raise StoreError(
+                "an earlier write in this transaction block failed, so the block can only be left "
+                "(its changes are rolled back)"
+            )
+        if not savepoint:
+            self._scopes.append(kind)
+            try:
+                yield self._conn
+            except BaseException as exc:
+                if is_driver_error(exc):
+                    raise self._translated(exc, "the operation failed and changed nothing") from exc
+                raise
+            finally:
+                self._scopes.pop()
+            return
+        name = f"hestore_sp{len(self._scopes)}"
+        with self._guard("could not start a savepoint"):
+            self._flush()
+            self._exec(f"SAVEPOINT {name}")
+        saved = (set(self._locked), set(self._changed), len(self._born))
+        self._scopes.append(kind)
+        try:
+            yield self._conn
+            self.check()
+            with self._guard("could not write"):
+                self._flush()
+                self._exec(f"RELEASE SAVEPOINT {name}")
+        except BaseException as exc:
+            if not self._closed:
+                with self._guard("could not roll back to a savepoint"):
+                    self._exec(f"ROLLBACK TO SAVEPOINT {name}")
+                    self._exec(f"RELEASE SAVEPOINT {name}")
+                self._locked, self._changed = saved[0], saved[1]
+                self._kill_born(saved[2])
+                # Cached rows may hold edits the database just forgot.
+                self._uows.clear()
+                self._failed = False
+            if is_driver_error(exc):
+                raise self._translated(exc, "the step failed and changed nothing") from exc
+            raise
+        finally:
+            self._scopes.pop()
+
+    def transaction(self):
+        """A block: one transaction (nested: a savepoint) that commits or rolls back as a whole.
+
+        `hestore.Store.transaction` is this.
+        """
+        return self._scope("block", savepoint=True)
+
+    def scope(self):
+        """One atomic step of several statements: its own transaction outside a block, a savepoint inside.
+
+        Yields the connection to run them on; pending edits are written before
+        it starts and when it ends.
+        """
+        return self._scope("step", savepoint=True)
+
+    @contextmanager
+    def editing(self, ref: MeshRef) -> Iterator[UnitOfWork]:
+        """One atomic edit of a mesh, through its unit of work.
+
+        Outside a block the edit is its own transaction; inside one, its
+        changes are undone by the unit of work if it raises, and the block
+        goes on. The mesh is locked for the transaction before its first
+        change.
+        """
+        self._alive(ref)
+        with self._scope("edit", savepoint=False):
+            uow = self._uow(ref)
+            with uow.operation():
+                yield uow
+
+    @contextmanager
+    def dry_run(self, ref: MeshRef) -> Iterator[UnitOfWork]:
+        """An edit that is always undone, without the writer lock: what ``can_*`` predicates run.
+
+        Outside a block it runs in a read-only transaction (SQLite: a
+        deferred one; PostgreSQL: ``REPEATABLE READ READ ONLY``), which never
+        waits for a writer and is rolled back. Inside a block it sees the
+        block's state; the mesh is not locked for it.
+        """
+        self._alive(ref)
+        if self._scopes:
+            if self._failed:
+                raise StoreError("an earlier write in this transaction block failed; leave the block")
+            with self._guard("could not read"):
+                uow = self._uows.get(ref.id) or self._unlocked_uow(ref)
+                with uow.operation(keep=False):
+                    yield uow
+            return
+        self._begin("BEGIN" if self.is_sqlite else "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY")
+        try:
+            with self._guard("could not read"):
+                uow = self._unlocked_uow(ref)
+                with uow.operation(keep=False):
+                    yield uow
+        finally:
+            with self._guard("could not end a read transaction"):
+                if self._in_txn():
+                    self._exec("ROLLBACK")
+
+    def _unlocked_uow(self, ref: MeshRef) -> UnitOfWork:
+        row = self._persistence.mesh_row(ref.id, lock=False)
+        if row is None:
+            raise self.missing(ref)
+        return UnitOfWork(ref.id, self._persistence.load, row[:3], bool(row[3]), bool(row[4]))
+
+    def _uow(self, ref: MeshRef) -> UnitOfWork:
+        uow = self._uows.get(ref.id)
+        if uow is None:
+            row = self._lock(ref)
+            uow = self._uows[ref.id] = UnitOfWork(ref.id, self._persistence.load, row[:3], bool(row[3]), bool(row[4]))
+        return uow
+
+    def _lock(self, ref: MeshRef) -> tuple:
+        """Lock the mesh for this transaction; return its row's counters and policy."""
+        # SQLite's BEGIN IMMEDIATE already holds the database's writer lock.
+        lock = not self.is_sqlite and ref.id not in self._locked
+        what = f"mesh {ref.name!r} is being edited by another transaction"
+        if lock and len(self._scopes) > 1:
+            # In a savepoint, so that a lock timeout leaves the enclosing transaction usable.
+            with self._scope("lock", savepoint=True), self._guard(what):
+                row = self._persistence.mesh_row(ref.id, lock=True)
+        else:
+            with self._guard(what):
+                row = self._persistence.mesh_row(ref.id, lock=lock)
+        if row is None:
+            raise self.missing(ref)
+        self._locked.add(ref.id)
+        return row
+
+    def _flush(self) -> None:
+        """Write every unit of work's changes (reads and commits see them afterwards)."""
+        dropped = []
+        for mesh_id, uow in self._uows.items():
+            if uow.dirty:
+                changes = uow.changes(0 if mesh_id in self._changed else 1)
+                try:
+                    self._persistence.write(changes)
+                except BaseException:
+                    # The cache and the database now disagree: only leaving the block repairs that.
+                    self._failed = bool(self._scopes)
+                    raise
+                uow.flushed()
+                self._changed.add(mesh_id)
+                if changes.drop:
+                    dropped.append(mesh_id)
+        for mesh_id in dropped:
+            del self._uows[mesh_id]
+
+    def analyze(self, tables) -> None:
+        """Refresh the planner's statistics of ``tables`` (PostgreSQL, outside a transaction; else nothing)."""
+        self.check()
+        if self.is_sqlite or self._scopes:
+            return
+        with self._guard("could not analyze"):
+            for table in tables:
+                self._exec(f"ANALYZE {table.name}")
+
+    # -- reading -----------------------------------------------------------------
+
+    def fetch(self, ref: MeshRef, key: Any, build: Callable[[], Any], values: dict) -> list[tuple]:
+        """Rows of a compiled statement about one mesh, seeing the open transaction's edits.
+
+        Parameters
+        ----------
+        ref : MeshRef
+            The mesh; bound as ``:m``.
+        key, build
+            The statement's cache key, and a function building it (once) from
+            `hestore.schema`'s tables, with named ``bindparam`` placeholders.
+        values : dict
+            The other parameters (the dict is reused: ``m`` is set in it).
+        """
+        if self._thread != threading.get_ident() or self._closed or not ref.alive:
+            self._alive(ref)
+        try:
+            if self._uows:
+                self._flush()
+            stmt = self.statements.get(key, build)
+            values["m"] = ref.id
+            cur = self._cur
+            cur.execute(stmt.sql, stmt.params(values))
+            return cur.fetchall()
+        except HestoreError:
+            raise
+        except Exception as exc:
+            if is_driver_error(exc):
+                raise self._translated(exc, f"could not read mesh {ref.name!r}") from exc
+            raise
+
+    @contextmanager
+    def reading(self) -> Iterator[sa.Connection]:
+        """The session's connection after pending edits are flushed (reads see them); errors translated."""
+        self.check()
+        with self._guard("could not read"):
+            if self._uows:
+                self._flush()
+            yield self._conn
+
+    @contextmanager
+    def snapshot(self, ref: MeshRef, *, committed: bool = False) -> Iterator[Snapshot]:
+        """Reads of one mesh in one consistent state.
+
+        Parameters
+        ----------
+        ref : MeshRef
+        committed : bool
+            Committed data only: inside a block, read through a second
+            connection — except for an in-memory SQLite database, which has
+            only the one (`Snapshot.isolated` then says False).
+
+        Raises
+        ------
+        MeshNotFoundError
+            The mesh is not in that state.
+        """
+        self._alive(ref)
+        other = committed and self._scopes and not self.is_memory
+        with self._guard(f"could not read mesh {ref.name!r}"):
+            if other:
+                conn = self._engine.connect()
+            else:
+                if self._uows:
+                    self._flush()
+                conn = self._conn
+            try:
+                with read_snapshot(conn):
+                    m = schema.meshes
+                    revision = conn.execute(sa.select(m.c.revision).where(m.c.id == ref.id)).scalar()
+                    if revision is None:
+                        raise self.missing(ref)
+                    yield Snapshot(conn, ref.id, revision, bool(other) or not self._scopes)
+            finally:
+                if other:
+                    conn.close()
+
+    @contextmanager
+    def traced(self, callback: Callable[[str], object]) -> Iterator[None]:
+        """Call ``callback(sql)`` for every statement the session sends on its cursor (benchmarks, tests)."""
+        self.check()
+        plain = self._cur
+        self._cur = _TracingCursor(plain, callback)
+        try:
+            yield
+        finally:
+            self._cur = plain
