@@ -30,7 +30,14 @@ import networkx as nx
 import pytest
 from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
-from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule, run_state_machine_as_test
+from hypothesis.stateful import (
+    RuleBasedStateMachine,
+    initialize,
+    invariant,
+    precondition,
+    rule,
+    run_state_machine_as_test,
+)
 
 import hestore
 from hestore import demo, graphs, schema
@@ -287,7 +294,8 @@ def test_polygons_meeting_at_a_vertex(mesh):
 def test_components_and_a_hole(mesh):
     V, Q = grid(mesh, 3)
     mesh.remove_polygon(Q[1][1])  # the centre quad: a hole
-    tri = mesh.add_polygon([mesh.add_vertex((5.0, 0.0, 0.0)), mesh.add_vertex((6.0, 0.0, 0.0)), mesh.add_vertex((5.0, 1.0, 0.0))])
+    corners = [mesh.add_vertex(xyz) for xyz in ((5.0, 0.0, 0.0), (6.0, 0.0, 0.0), (5.0, 1.0, 0.0))]
+    tri = mesh.add_polygon(corners)
     mesh.add_vertex((9.0, 9.0, 9.0))  # isolated
     G, D = mesh.to_networkx(), mesh.to_networkx("dual")
     assert nx.number_connected_components(G) == 3
@@ -365,7 +373,10 @@ def test_algorithms_equal_on_a_plain_copy(mesh):
     for s, t in itertools.product(nodes[::3], nodes[::5]):
         if nx.has_path(P, s, t):
             assert nx.shortest_path(G, s, t) == nx.shortest_path(P, s, t)  # tie-breaks too
-    assert nx.shortest_path(G, 0, 5, weight=lambda u, v, d: 1 + min(d)) == nx.shortest_path(P, 0, 5, weight=lambda u, v, d: 1 + min(d))
+    def weight(u, v, d):
+        return 1 + min(d)
+
+    assert nx.shortest_path(G, 0, 5, weight=weight) == nx.shortest_path(P, 0, 5, weight=weight)
     assert sorted(map(len, nx.cycle_basis(nx.Graph(G)))) == sorted(map(len, nx.cycle_basis(nx.Graph(P))))
     assert nx.cycle_basis(nx.Graph(G)) == nx.cycle_basis(nx.Graph(P))
     assert list(G.degree()) == list(P.degree())
@@ -381,7 +392,8 @@ def test_algorithms_equal_on_a_plain_copy(mesh):
     assert not nx.is_eulerian(G)
     knot = nx.node_connected_component(P, nodes[-4])  # the parallel edges, the 2-gon and the 1-gon
     assert len(knot) == 3 and nx.is_eulerian(G.subgraph(knot)) and nx.is_eulerian(P.subgraph(knot))
-    assert list(nx.eulerian_circuit(G.subgraph(knot), keys=True)) == list(nx.eulerian_circuit(P.subgraph(knot), keys=True))
+    circuit = list(nx.eulerian_circuit(G.subgraph(knot), keys=True))
+    assert circuit == list(nx.eulerian_circuit(P.subgraph(knot), keys=True))
 
 
 # -- frozen, cached, committed ----------------------------------------------------------------

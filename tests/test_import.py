@@ -50,7 +50,7 @@ def signature(mesh: hestore.Mesh) -> dict:
     polys = _rows(store, mesh, schema.polygons)
     label = {}
     loops = []
-    for k, (p, start) in enumerate(polys):
+    for k, (_p, start) in enumerate(polys):
         h, loop = start, []
         while True:
             label[h] = (k, len(loop))
@@ -60,7 +60,7 @@ def signature(mesh: hestore.Mesh) -> dict:
                 break
         loops.append(tuple(loop))
     twins = {}
-    for h, (origin, nxt, prv, twin, edge, polygon) in he.items():
+    for h, (_origin, _nxt, _prv, twin, _edge, polygon) in he.items():
         if polygon is not None:
             twins[label[h]] = label.get(twin, "free")
     return {

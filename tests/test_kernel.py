@@ -780,7 +780,11 @@ def test_block_with_only_can_add_polygon_keeps_the_revision(mesh):
             if X != Y:
                 mesh.add_edge(fans[X][1], fans[Y][0])
     loops = [
-        [mesh.find_halfedge(v, fans[X][1]), mesh.find_halfedge(fans[X][1], fans[Y][0]), mesh.find_halfedge(fans[Y][0], v)]
+        [
+            mesh.find_halfedge(v, fans[X][1]),
+            mesh.find_halfedge(fans[X][1], fans[Y][0]),
+            mesh.find_halfedge(fans[Y][0], v),
+        ]
         for X in range(3)
         for Y in range(3)
         if X != Y

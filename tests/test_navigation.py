@@ -172,7 +172,8 @@ def test_vertex_circulators_on_the_grid(mesh, g):
             assert v.neighbors() == [h.target for h in outs]
             assert v.edges() == [h.edge for h in outs]
             assert v.polygons() == [h.polygon for h in outs if h.polygon is not None]
-            assert v.degree == len(outs) == (2 if i in (0, 2) and j in (0, 2) else 3 if (i in (0, 2) or j in (0, 2)) else 4)
+            corner, side = i in (0, 2) and j in (0, 2), i in (0, 2) or j in (0, 2)
+            assert v.degree == len(outs) == (2 if corner else 3 if side else 4)
             assert not v.is_isolated
             assert v.is_boundary == ((i, j) != (1, 1))
             if v.is_boundary:

@@ -499,10 +499,13 @@ class MeshMachine(RuleBasedStateMachine):
             assert m.face[h] is None, f"half-edge {h} used by the new polygon was not free"
         if predicted is not None:
             new_halfedges = {x for e in new_ids for x in m.edges[e][2:]}
-            assert any(
-                all(q == g if not isinstance(q, tuple) else g in new_halfedges for q, g in zip(predicted, loop[r:] + loop[:r]))
-                for r in range(len(loop))
-            ), f"polygon uses half-edges {loop}, expected {predicted}"
+            def matches(rotated):
+                pairs = zip(predicted, rotated)
+                return all(q == g if not isinstance(q, tuple) else g in new_halfedges for q, g in pairs)
+
+            assert any(matches(loop[r:] + loop[:r]) for r in range(len(loop))), (
+                f"polygon uses half-edges {loop}, expected {predicted}"
+            )
         m.add_polygon(p.id, loop)
 
     def _free_next_loop(self, start: int) -> list[int]:

@@ -160,7 +160,7 @@ def ragged(polygons) -> Ragged:
     >>> ragged([0, 1, 2])
     Traceback (most recent call last):
     ...
-    hestore.errors.InvalidInputError: polygons must be an (F, k) array or a sequence of index sequences; polygon 0 is 0, not a sequence of vertex indices
+    hestore.errors.InvalidInputError: polygons must be ...; polygon 0 is 0, not a sequence of vertex indices
     """
     if isinstance(polygons, Ragged):
         return Ragged(np.asarray(polygons.offsets, dtype=I64), _as_indices(polygons.indices))

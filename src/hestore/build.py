@@ -180,7 +180,8 @@ def _polygon_checks(n_vertices: int, soup: Ragged, allow_loops: bool, refused: d
         for pos in np.flatnonzero(out).tolist():
             first.setdefault(int(poly[pos]), int(indices[pos]))
         for p, i in first.items():
-            refused[p] = Refusal(p, InvalidInputError, f"vertex index {i + base} is out of range (there are {n_vertices} vertices)")
+            reason = f"vertex index {i + base} is out of range (there are {n_vertices} vertices)"
+            refused[p] = Refusal(p, InvalidInputError, reason)
             ok[p] = False
     if not allow_loops:
         c = _corners(n_vertices, soup, ok)
@@ -210,7 +211,8 @@ def _refuse_overused(c: _Corners, order: np.ndarray, ok: np.ndarray, refused: di
         p, a, b = int(c.poly[pos]), int(c.a[pos]) + base, int(c.b[pos]) + base
         if ok[p]:
             what = f"runs the self-loop at vertex {a} more than twice" if a == b else f"runs {a}→{b} twice"
-            refused[p] = Refusal(p, HalfEdgeNotFreeError, f"it {what}, but an edge has only two sides (a repeated vertex the structure cannot take)")
+            reason = f"it {what}, but an edge has only two sides (a repeated vertex the structure cannot take)"
+            refused[p] = Refusal(p, HalfEdgeNotFreeError, reason)
             ok[p] = False
 
 
@@ -380,8 +382,10 @@ def _edge_refusal(p: int, c: _Corners, order: np.ndarray, accepted: np.ndarray, 
         names = ", ".join(map(str, holders))
         if a == b:
             if len(holders) < cap:
-                return Refusal(p, HalfEdgeNotFreeError, f"it runs the self-loop at vertex {a} twice, but polygon {names} already has one side of it")
-            return Refusal(p, HalfEdgeNotFreeError, f"both sides of the self-loop at vertex {a} already have polygons ({names})")
+                reason = f"it runs the self-loop at vertex {a} twice, but polygon {names} already has one side of it"
+            else:
+                reason = f"both sides of the self-loop at vertex {a} already have polygons ({names})"
+            return Refusal(p, HalfEdgeNotFreeError, reason)
         rev = slot ^ 1
         lo2, hi2 = np.searchsorted(sorted_slots, [rev, rev + 1])
         back = sorted({int(q) for q in c.poly[order[lo2:hi2]] if accepted[q] and q < p})
@@ -470,7 +474,10 @@ def _out_end(v: int, b: int, k: int):
 
 
 def _in_end(a: int, v: int, k: int):
-    """The edge end at ``v`` that a use ``a→v`` arrives at: a self-loop's use ``k`` arrives where use ``1 - k`` leaves."""
+    """The edge end at ``v`` that a use ``a→v`` arrives at.
+
+    A self-loop's use ``k`` arrives where use ``1 - k`` leaves.
+    """
     return ("loop", 1 - k) if a == v else ("to", a)
 
 

@@ -204,7 +204,8 @@ def import_arrays(
     """
     _check_on_error(on_error)
     _check_name(store, name)
-    return _import(store, name, _as_positions(positions), ragged(polygons), on_error, allow_loops, allow_multi_edges, progress)
+    pos, soup = _as_positions(positions), ragged(polygons)
+    return _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress)
 
 
 def _check_name(store: "Store", name: str) -> None:
@@ -212,7 +213,9 @@ def _check_name(store: "Store", name: str) -> None:
         raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
 
 
-def _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *, lines=None, source=None, index_base=0):
+def _import(
+    store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *, lines=None, source=None, index_base=0
+):
     """Decide, then write: nothing is stored unless every check has passed."""
     if progress is not None:
         progress("build", 0, 1)

@@ -296,8 +296,9 @@ def _cmd_graph_export(args: argparse.Namespace) -> int:
         graph = store.mesh(args.name).to_networkx(args.kind)
     nodes, edges = graphio.write_graph(graph, args.file)
     size = os.path.getsize(args.file)
+    kind = graphio.FORMATS[graphio.format_of(args.file)]
     print(
-        f"wrote the {args.kind} view of {args.name!r} to {args.file} ({graphio.FORMATS[graphio.format_of(args.file)]}): "
+        f"wrote the {args.kind} view of {args.name!r} to {args.file} ({kind}): "
         f"{_count(nodes, 'node')}, {_count(edges, 'edge')}, {size} bytes"
     )
     return 0

@@ -212,7 +212,11 @@ def _fetch_pg_copy(connection: sa.Connection, mesh_id: int, requests: Sequence) 
 
 
 def read_columns(
-    connection: sa.Connection, mesh_id: int, requests: Sequence[tuple[sa.Table, Sequence]], *, use_copy: bool | None = None
+    connection: sa.Connection,
+    mesh_id: int,
+    requests: Sequence[tuple[sa.Table, Sequence]],
+    *,
+    use_copy: bool | None = None,
 ) -> list[list[np.ndarray]]:
     """Read columns of several tables for one mesh, as one consistent state.
 
@@ -413,7 +417,7 @@ def _write_pg_copy(cursor, table, mesh_id, names, arrays, nullable, n_rows, prog
                 take = slice(start, stop) if rows is None else rows[start:stop]
                 block = np.empty(stop - start, dtype=layout)
                 block["count"] = len(cols)
-                for k, col in enumerate(cols):
+                for k in range(len(cols)):
                     if (pat >> k) & 1:
                         block[f"l{k}"] = -1
                     else:

@@ -51,7 +51,8 @@ def format_of(path: str | os.PathLike) -> str:
     if suffix not in FORMATS:
         what = repr(suffix) if suffix else "(no extension)"
         raise InvalidInputError(
-            f"{os.fspath(path)}: unsupported graph file format {what}; write .graphml (GraphML) or .edgelist (an edge list)"
+            f"{os.fspath(path)}: unsupported graph file format {what}; "
+            "write .graphml (GraphML) or .edgelist (an edge list)"
         )
     return suffix
 

@@ -149,8 +149,11 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
 
     The other kinds:
 
-    >>> list(mesh.to_networkx("halfedge").out_edges(2, keys=True, data=True))
-    [(2, 1, 3, {'polygon': None, 'edge': 1, 'twin': 2}), (2, 0, 4, {'polygon': 0, 'edge': 2, 'twin': 5}), (2, 3, 6, {'polygon': None, 'edge': 3, 'twin': 7})]
+    >>> for edge in mesh.to_networkx("halfedge").out_edges(2, keys=True, data=True):
+    ...     print(edge)
+    (2, 1, 3, {'polygon': None, 'edge': 1, 'twin': 2})
+    (2, 0, 4, {'polygon': 0, 'edge': 2, 'twin': 5})
+    (2, 3, 6, {'polygon': None, 'edge': 3, 'twin': 7})
     >>> _ = mesh.add_edge(c, d)  # a parallel edge
     >>> mesh.to_networkx("graph").edges[2, 3]
     {'multiplicity': 2, 'edges': [3, 4]}
@@ -244,7 +247,10 @@ def _vertex_nodes(v_id, x, y, z, unplaced) -> tuple[list, list]:
 
 
 def _groups(a: np.ndarray, b: np.ndarray, keys: np.ndarray):
-    """Sort edges ``a → b`` by ``(a, b, key)``; return the order, the sorted columns and where each ``(a, b)`` run starts."""
+    """Sort edges ``a → b`` by ``(a, b, key)``.
+
+    Returns the order, the sorted columns and where each ``(a, b)`` run starts.
+    """
     order = np.lexsort((keys, b, a))
     a, b, keys = a[order], b[order], keys[order]
     return order, a, b, keys, run_starts(a, b)
@@ -261,8 +267,12 @@ def _keydicts(keys: list, data: list, first: np.ndarray) -> list[dict]:
     return keydicts
 
 
-def _adjacency(nodes: list, src: np.ndarray, dst: np.ndarray, rank: np.ndarray, values: list, which: np.ndarray) -> list[dict]:
-    """Per node, ``{nodes[dst[i]]: values[which[i]]}`` over the entries ``i`` with ``src[i]`` its row, in ``rank`` order.
+def _adjacency(
+    nodes: list, src: np.ndarray, dst: np.ndarray, rank: np.ndarray, values: list, which: np.ndarray
+) -> list[dict]:
+    """Per node, ``{nodes[dst[i]]: values[which[i]]}`` over the entries ``i`` with ``src[i]`` its row.
+
+    Each node's entries come in ``rank`` order.
 
     ``src`` and ``dst`` are rows of ``nodes``; the neighbour keys are the
     node list's own int objects, so an id is stored once, not once per use.
@@ -274,7 +284,9 @@ def _adjacency(nodes: list, src: np.ndarray, dst: np.ndarray, rank: np.ndarray, 
     return [dict(islice(pairs, c)) for c in counts]
 
 
-def _undirected(nodes: list, attrs: list, u: np.ndarray, v: np.ndarray, keys: np.ndarray, make_data, multi: bool) -> nx.Graph:
+def _undirected(
+    nodes: list, attrs: list, u: np.ndarray, v: np.ndarray, keys: np.ndarray, make_data, multi: bool
+) -> nx.Graph:
     """A MultiGraph (or a Graph, parallel edges merged) of edges between node rows ``u`` and ``v``.
 
     Runs of edges with the same ends become one keydict (Graph: one datadict

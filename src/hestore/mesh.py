@@ -320,7 +320,7 @@ class Mesh:
         >>> mesh.add_edge(b, a)
         Traceback (most recent call last):
         ...
-        hestore.errors.PolicyError: vertices 1 and 0 are already joined by edge 0; this mesh does not allow parallel edges
+        hestore.errors.PolicyError: vertices 1 and 0 are already joined by edge 0; this mesh does not allow ...
         """
         ia, ib = self._edge_ends(a, b)
         with self._edit() as uow:

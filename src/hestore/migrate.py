@@ -310,7 +310,10 @@ class SchemaState:
         'none: a new, empty database (hestore creates its tables at head, 0003, when it first opens it)'
         """
         if self.status == "new":
-            return f"none: a new, empty database (hestore creates its tables at head, {self.head}, when it first opens it)"
+            return (
+                f"none: a new, empty database (hestore creates its tables at head, {self.head}, "
+                "when it first opens it)"
+            )
         if self.status == "foreign":
             return (
                 f"none: the database holds tables hestore did not create ({', '.join(self.foreign_tables)}); "

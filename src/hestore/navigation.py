@@ -73,7 +73,8 @@ def exists(mesh: "Mesh", kind: str, i: int) -> None:
     table = _TABLES[kind]
 
     def build():
-        return sa.select(sa.literal_column("1")).where(table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i"))
+        key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i")
+        return sa.select(sa.literal_column("1")).where(*key)
 
     if not _rows(mesh, ("nav_exists", kind), build, i=i):
         raise missing(mesh, kind, i)
@@ -211,7 +212,10 @@ def _build_ring():
 
 
 def ring(mesh: "Mesh", p: int) -> list[tuple]:
-    """Half-edges of polygon ``p`` as ``(id, next, origin, edge, twin_polygon)``, in ``next`` order from ``p.halfedge``."""
+    """Half-edges of polygon ``p`` as ``(id, next, origin, edge, twin_polygon)``.
+
+    In ``next`` order from ``p.halfedge``; one query for the whole ring.
+    """
     rows = _rows(mesh, "nav_ring", _build_ring, i=p)
     if not rows:
         raise missing(mesh, "polygon", p)

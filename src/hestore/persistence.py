@@ -185,7 +185,8 @@ class Persistence:
         mesh_id = changes.mesh_id
         if changes.drop:
             for table in schema.ELEMENT_TABLES:
-                self._run(("drop", table.name), lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m")), mesh_id)
+                drop = lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m"))  # noqa: E731
+                self._run(("drop", table.name), drop, mesh_id)
             ms = schema.meshes
             self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), mesh_id)
             return
@@ -226,7 +227,8 @@ class Persistence:
             report = None
             if bulk.progress is not None:
                 report = lambda rows, base=done: bulk.progress(base + rows, total)  # noqa: E731
-            write_columns(self.cursor(), self.st.dialect, schema.metadata.tables[name], mesh_id, columns, progress=report)
+            table = schema.metadata.tables[name]
+            write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, progress=report)
             done += len(columns["id"])
 
     def _write_many(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:

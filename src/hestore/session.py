@@ -204,7 +204,9 @@ class Session:
                 f"{threading.get_ident()}; a store belongs to one thread: open one per thread"
             )
         if self._closed:
-            raise HestoreError(f"the store on {self.shown_url} is closed; nothing more can be read or written through it")
+            raise HestoreError(
+                f"the store on {self.shown_url} is closed; nothing more can be read or written through it"
+            )
 
     def _alive(self, ref: MeshRef) -> None:
         self.check()

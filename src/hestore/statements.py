@@ -36,7 +36,8 @@ def _compiler_for(dialect: sa.engine.Dialect):
         return base
     cls = _HINTING.get(base)
     if cls is None:
-        cls = _HINTING[base] = type("HintingSQLiteCompiler", (base,), {"get_from_hint_text": lambda self, table, text: text})
+        hint = {"get_from_hint_text": lambda self, table, text: text}
+        cls = _HINTING[base] = type("HintingSQLiteCompiler", (base,), hint)
     return cls
 
 

@@ -147,7 +147,12 @@ class UnitOfWork:
     """
 
     def __init__(
-        self, mesh_id: int, load: Callable[[int, dict], list], counters: tuple, allow_loops: bool, allow_multi_edges: bool
+        self,
+        mesh_id: int,
+        load: Callable[[int, dict], list],
+        counters: tuple,
+        allow_loops: bool,
+        allow_multi_edges: bool,
     ) -> None:
         self.mesh_id = mesh_id
         self._load = load
@@ -296,7 +301,13 @@ class UnitOfWork:
                 if i not in cur:
                     cur[i] = loaded[i] = row[2]
         # Remember what does not exist, so it is not asked for again.
-        for name, cur in (("stars", self._v), ("vertices", self._v), ("halfedges", he), ("edges", self._e), ("polygons", self._p)):
+        for name, cur in (
+            ("stars", self._v),
+            ("vertices", self._v),
+            ("halfedges", he),
+            ("edges", self._e),
+            ("polygons", self._p),
+        ):
             for i in want.get(name, ()):
                 cur.setdefault(i, _ABSENT)
         self._out.update(outs)

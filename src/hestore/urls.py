@@ -74,7 +74,7 @@ def resolve(url: str | sa.engine.URL | None = None) -> sa.engine.URL:
     >>> resolve("mysql://me@db/meshes")
     Traceback (most recent call last):
     ...
-    hestore.errors.InvalidInputError: unsupported database 'mysql' in 'mysql://me@db/meshes': hestore stores meshes in SQLite or PostgreSQL; use sqlite:///path/to/meshes.db, a bare file path, or postgresql+psycopg://user@host/dbname
+    hestore.errors.InvalidInputError: unsupported database 'mysql' in 'mysql://me@db/meshes': hestore stores ...
     """
     if url is None:
         url = os.environ.get(ENVIRONMENT) or DEFAULT_URL

@@ -1,0 +1,48 @@
+"""The house rules a tool can keep: the module layers and the linter.
+
+The layers are an import-linter contract in ``pyproject.toml``
+(``[tool.importlinter]``): from the command line down through the catalogue,
+the mesh facade, the algorithms and the session to storage and the errors,
+no module imports one above it — function-local imports included — so no
+import cycle can come back unnoticed. Ruff's rules are in ``[tool.ruff]``.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import subprocess
+import sys
+
+from importlinter.cli import lint_imports
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_import_layers_are_kept(capsys):
+    status = lint_imports(config_filename=str(ROOT / "pyproject.toml"), no_cache=True)
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert "0 broken" in out
+
+
+def test_the_layer_contract_sees_function_local_imports(tmp_path, capsys):
+    # The contract only protects the layers if it reads imports inside functions too.
+    config = tmp_path / "contract.toml"
+    config.write_text(
+        '[tool.importlinter]\nroot_package = "hestore"\n'
+        '[[tool.importlinter.contracts]]\nname = "errors below mesh"\ntype = "forbidden"\n'
+        'source_modules = ["hestore.mesh"]\nforbidden_modules = ["hestore.graphs"]\n'
+    )
+    # hestore.mesh imports hestore.graphs only inside Mesh.to_networkx.
+    assert lint_imports(config_filename=str(config), no_cache=True) == 1
+    assert "hestore.mesh -> hestore.graphs" in capsys.readouterr().out
+
+
+def test_ruff_finds_nothing():
+    done = subprocess.run(
+        [sys.executable, "-m", "ruff", "check", "--no-cache", str(ROOT)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
