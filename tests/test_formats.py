@@ -1,4 +1,4 @@
-"""OFF, OBJ and PLY reading and writing (`hestore.formats`); no database needed.
+"""OFF, OBJ and PLY reading and writing (`hestore.io`); no database needed.
 
 Most text-file tests run three ways (the ``reader`` fixture): as a user calls
 `formats.read`; with chunks of a few dozen bytes, so that every chunk
@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from hestore import io as formats
+from hestore.io import common, ply as ply_module
 from hestore.errors import InvalidInputError
 from meshes import require_shared_meshes, shared_meshes
 
@@ -26,9 +27,9 @@ from meshes import require_shared_meshes, shared_meshes
 def reader(request, monkeypatch):
     """How text files are read: normally, in 37-byte chunks, or line by line only."""
     if request.param == "tiny-chunks":
-        monkeypatch.setattr(formats, "_CHUNK_BYTES", 37)
+        monkeypatch.setattr(common, "CHUNK_BYTES", 37)
     elif request.param == "per-line":
-        monkeypatch.setattr(formats, "_parse", lambda text, total, dtype: None)
+        monkeypatch.setattr(common, "parse", lambda text, total, dtype: None)
     return request.param
 
 
@@ -176,8 +177,8 @@ def test_writer_refuses_bad_arrays_and_writes_nothing(tmp_path):
 
 
 def test_progress_is_reported_and_ends_complete(tmp_path, monkeypatch):
-    monkeypatch.setattr(formats, "_CHUNK_BYTES", 64)
-    monkeypatch.setattr(formats, "_WRITE_ROWS", 5)
+    monkeypatch.setattr(common, "CHUNK_BYTES", 64)
+    monkeypatch.setattr(common, "WRITE_ROWS", 5)
     offsets, indices = ragged(MIXED)
     for name, binary in [("p.obj", True), ("p.off", True), ("p.ply", False), ("p.ply", True)]:
         written = []
@@ -574,7 +575,7 @@ def test_binary_ply_extra_bytes_and_files_without_faces(tmp_path):
 def naive_read(path: pathlib.Path, keep=lambda i: True):
     """The independent check: a deliberately plain reader, one line or record at a time.
 
-    It shares no code with `hestore.formats` and uses no numpy, so agreeing
+    It shares no code with `hestore.io` and uses no numpy, so agreeing
     with it means something. Returns ``(vertex count, {i: position},
     polygon count, {i: (indices, line)})`` for the vertices and polygons
     that ``keep(i)`` selects (lines are None in binary PLY).
@@ -712,8 +713,8 @@ def test_shared_mesh_matches_the_naive_reader(name):
 def test_shared_mesh_per_line_reader_agrees(name, monkeypatch):
     path = require_shared_meshes() / name
     vectorised = formats.read(path)
-    monkeypatch.setattr(formats, "_parse", lambda text, total, dtype: None)
-    monkeypatch.setattr(formats._BinaryFile, "peek", lambda self, n: b"")  # binary PLY: the record walk
+    monkeypatch.setattr(common, "parse", lambda text, total, dtype: None)
+    monkeypatch.setattr(ply_module._BinaryFile, "peek", lambda self, n: b"")  # binary PLY: the record walk
     per_line = formats.read(path)
     for field in ("positions", "offsets", "indices", "lines"):
         a, b = getattr(vectorised, field), getattr(per_line, field)
