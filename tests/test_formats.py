@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from hestore import io as formats
-from hestore.io import common, ply as ply_module
+from hestore.io import common
+from hestore.io import ply as ply_module
 from hestore.errors import InvalidInputError
 from meshes import require_shared_meshes, shared_meshes
 
@@ -342,7 +343,7 @@ def test_off_header_variants_and_extra_values(tmp_path, reader):
         ("nOFF\n5\n3 1 0\n", 2, "only 2- and 3-dimensional"),
         ("OFF\n\n3 x 0\n", 3, "count 'x' is not an integer"),
         ("OFF\n3\n0 0 0\n", 2, "expected the vertex, face and edge counts, found '3'"),
-        ("OFF\n3 -1 0\n", 2, "negative count"),
+        ("OFF\n3 -1 0\n", 2, "count '-1' is negative"),
         ("OFF\n", 1, "file ends inside the OFF header"),
         ("OFF\n3 1 0\n0 0 0\n1 0 0\n", 4, "file ends after 2 of 3 vertices"),
         ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n# end\n", 7, "file ends after 1 of 2 faces"),
@@ -483,7 +484,8 @@ NO_VERTICES = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproper
         ("ply\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n", 5, "no format line"),
         ("ply\nformat ascii 1.0\nproperty float x\n", 3, "property before any element"),
         ("ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\n", 4, "unknown PLY property type 'float128'"),
-        ("ply\nformat ascii 1.0\nelement vertex -1\n", 3, "expected 'element <name> <count>'"),
+        ("ply\nformat ascii 1.0\nelement vertex -1\n", 3, "element vertex count '-1' is negative"),
+        ("ply\nformat ascii 1.0\nelement vertex 3\nelement face\n", 4, "expected 'element <name> <count>'"),
         (
             "ply\nformat ascii 1.0\nelement vertex 1\nproperty list float int x\n",
             4,

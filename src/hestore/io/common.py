@@ -196,6 +196,41 @@ def integer(token: bytes, path: str, line: int, what: str) -> int:
     return min(max(value, INT64_MIN), INT64_MAX)
 
 
+def count(token: bytes, path: str, line: int, what: str) -> int:
+    """A header's record count: a non-negative integer that fits in int64.
+
+    Stricter than `integer`: no saturation (the count shown in a later
+    message is the one in the file) and no sign, underscores or non-ASCII
+    digits, which Python's ``int`` would take.
+    """
+    digits = token[1:] if token[:1] == b"-" else token
+    if not digits.isdigit():  # bytes.isdigit: ASCII digits only
+        raise error(path, line, f"{what} {show(token)} is not an integer")
+    if digits is not token:
+        raise error(path, line, f"{what} {show(token)} is negative")
+    significant = digits.lstrip(b"0")
+    # Checked by length first: int() of thousands of digits is slow, and past
+    # 4300 digits it raises a ValueError of its own.
+    if len(significant) > 19 or int(significant or b"0") > INT64_MAX:
+        raise error(path, line, f"{what} {show(token)} is too large")
+    return int(significant or b"0")
+
+
+def check_room(path: str, line: int, records: int, what: str, room: int, per_record: int, slack: int = 0) -> None:
+    """Refuse ``records`` records of at least ``per_record`` bytes each in ``room`` (+ ``slack``) bytes.
+
+    Header counts are never trusted: a count checked here cannot make a
+    reader allocate or loop beyond a small multiple of the file's size.
+    """
+    if records * per_record > room + slack:
+        raise error(path, line, f"{records} {what} cannot fit in the {max(room, 0)} bytes left (each needs {per_record})")
+
+
+# The fewest bytes a record of a text file takes: a character and a line
+# break. The last line may lack its line break: text callers pass slack=1.
+TEXT_RECORD_BYTES = 2
+
+
 def whole(token: bytes, path: str, line: int, what: str) -> int:
     """An integer, also written as an integral float (``3.0``), as OFF and PLY writers sometimes do."""
     try:

@@ -19,6 +19,7 @@ import os
 import re
 
 from hestore.io.common import (
+    TEXT_RECORD_BYTES,
     Faces,
     Polygons,
     PolygonSoup,
@@ -26,7 +27,9 @@ from hestore.io.common import (
     Progress,
     RowProgress,
     TextFile,
+    check_room,
     checked_arrays,
+    count,
     error,
     integer,
     read_file,
@@ -164,11 +167,13 @@ def _read(src: TextFile) -> PolygonSoup:
     if not rest:
         rest, line = more()
     if len(rest) not in (2, 3):
-        found = " ".join(t.decode("utf-8", "replace") for t in rest)
-        raise error(path, line, f"expected the vertex, face and edge counts, found {found!r}")
-    nv, nf, *_ = (integer(t, path, line, "count") for t in rest)
-    if nv < 0 or nf < 0:
-        raise error(path, line, f"negative count in the OFF header: {nv} vertices, {nf} faces")
+        raise error(path, line, f"expected the vertex, face and edge counts, found {show(b' '.join(rest))}")
+    nv, nf, *_ = (count(t, path, line, "count") for t in rest)
+    # Every vertex and face takes a line of its own after the header.
+    room = src.size - src.f.tell()
+    check_room(path, line, nv, "vertices", room, TEXT_RECORD_BYTES, slack=1)
+    room -= nv * TEXT_RECORD_BYTES
+    check_room(path, line, nf, "faces after the vertices", room, TEXT_RECORD_BYTES, slack=1)
 
     polygons = Polygons()
     vertices = Positions(nv)

@@ -32,6 +32,7 @@ import numpy as np
 from hestore.errors import InvalidInputError
 from hestore.io import common
 from hestore.io.common import (
+    TEXT_RECORD_BYTES,
     Faces,
     Polygons,
     PolygonSoup,
@@ -41,7 +42,9 @@ from hestore.io.common import (
     Section,
     Skip,
     TextFile,
+    check_room,
     checked_arrays,
+    count,
     error,
     ranges,
     read_file,
@@ -273,13 +276,18 @@ def _float_value(token: bytes, path: str, line: int) -> float:
         raise error(path, line, f"expected a number, found {show(token)}") from None
 
 
+def _shown(word: str) -> str:
+    # A header "line" can be megabytes long (a binary body without end_header).
+    return show(word.encode())
+
+
 def _read_header(f, path: str):
     """``(elements, byte order or None for ASCII, number of the first body line)``."""
     raw = f.readline()
     if raw.strip() != b"ply":
         raise error(path, 1, "not a PLY file: the first line must be 'ply'")
     order = False
-    elements: list[_Element] = []
+    elements: dict[str, _Element] = {}
     number = 1
     while True:
         raw = f.readline()
@@ -294,54 +302,58 @@ def _read_header(f, path: str):
             break
         if key == "format":
             if len(words) != 3 or words[1] not in _FORMATS:
-                raise error(path, number, f"unknown PLY format {' '.join(words[1:])!r}")
+                raise error(path, number, f"unknown PLY format {_shown(' '.join(words[1:]))}")
             order = _FORMATS[words[1]]
         elif key == "element":
-            if len(words) != 3 or not words[2].isdigit():
+            if len(words) != 3:
                 raise error(path, number, "expected 'element <name> <count>'")
-            if any(e.name == words[1] for e in elements):
-                raise error(path, number, f"element {words[1]!r} is declared twice")
-            elements.append(_Element(words[1], int(words[2]), number, []))
+            name = words[1]
+            if name in elements:
+                raise error(path, number, f"element {_shown(name)} is declared twice")
+            n = count(words[2].encode(), path, number, f"element {name} count")
+            elements[name] = last = _Element(name, n, number, [])
         elif key == "property":
             if not elements:
                 raise error(path, number, "property before any element")
-            elements[-1].properties.append(_property(words, path, number))
+            last.properties.append(_property(words, path, number))
         else:
-            raise error(path, number, f"unknown PLY header keyword {key!r}")
+            raise error(path, number, f"unknown PLY header keyword {_shown(key)}")
     if order is False:
         raise error(path, number, "the PLY header has no format line")
     _check_elements(elements, path)
-    return elements, order, number + 1
+    return list(elements.values()), order, number + 1
 
 
 def _property(words: list[str], path: str, number: int) -> _Property:
     def type_of(name: str) -> str:
         if name not in _TYPES:
-            raise error(path, number, f"unknown PLY property type {name!r}")
+            raise error(path, number, f"unknown PLY property type {_shown(name)}")
         return _TYPES[name]
 
     if len(words) == 5 and words[1] == "list":
         count_type = type_of(words[2])
         if count_type[0] == "f":
-            raise error(path, number, f"list count type must be an integer type, not {words[2]!r}")
+            raise error(path, number, f"list count type must be an integer type, not {_shown(words[2])}")
         return _Property(words[4], type_of(words[3]), count_type)
     if len(words) == 3 and words[1] != "list":
         return _Property(words[2], type_of(words[1]))
     raise error(path, number, "expected 'property <type> <name>' or 'property list <count type> <type> <name>'")
 
 
-def _check_elements(elements: list[_Element], path: str) -> None:
-    named = {e.name: e for e in elements}
+def _check_elements(named: dict[str, _Element], path: str) -> None:
     vertex = named.get("vertex")
+    face = named.get("face")
     if vertex is None:
-        raise error(path, elements[-1].line if elements else 1, "the PLY header declares no vertex element")
+        # Neither vertices nor faces is an empty mesh, as OpenMesh reads it.
+        if face is not None:
+            raise error(path, face.line, "the PLY header declares a face element but no vertex element")
+        return
     for c in "xyz":
         at = vertex.position(c)
         if at is None and c != "z":
             raise error(path, vertex.line, f"the vertex element has no {c} property")
         if at is not None and vertex.properties[at].is_list:
             raise error(path, vertex.line, f"vertex property {c} is a list, not a number")
-    face = named.get("face")
     if face is not None:
         at = face.index_list
         if at is None or not face.properties[at].is_list:
@@ -357,6 +369,11 @@ def _check_elements(elements: list[_Element], path: str) -> None:
 def _read(f, path: str, size: int, progress: Progress | None) -> PolygonSoup:
     elements, order, body_line = _read_header(f, path)
     if order is None:
+        room = size - f.tell()
+        for e in elements:
+            if e.properties:  # records of no properties take no line
+                check_room(path, e.line, e.count, f"{e.name} records", room, TEXT_RECORD_BYTES, slack=1)
+                room -= e.count * TEXT_RECORD_BYTES
         src = TextFile(f, path, size, progress, line=body_line)
         polygons = Polygons()
         vertices = None
@@ -372,7 +389,7 @@ def _read(f, path: str, size: int, progress: Progress | None) -> PolygonSoup:
                 skip.what = f"{e.name} records"
                 sections.append(skip)
         read_sections(src, sections, comments=False)
-        return polygons.soup(vertices.parts)
+        return polygons.soup(vertices.parts if vertices is not None else [])
     return _read_binary(_BinaryFile(f, path, size, progress), elements, order)
 
 
@@ -399,11 +416,14 @@ class _BinaryFile:
         self.f.seek(pos)
         return data
 
+    def remaining(self) -> int:
+        return max(self.size - self.f.tell(), 0)
+
     def records(self, dtype: np.dtype, n: int) -> tuple[np.ndarray, int]:
-        """Up to ``n`` records; also how many were complete before the end of the file."""
-        records = np.empty(n, dtype=dtype)
-        if dtype.itemsize == 0 or n == 0:
-            return records, n
+        """Up to ``n`` records (``dtype.itemsize > 0``); also how many were complete before the end of the file."""
+        # No more than the rest of the file holds: the count comes from the
+        # header, and allocating it unchecked is how a 10 KB file asks for 48 GiB.
+        records = np.empty(min(n, self.remaining() // dtype.itemsize), dtype=dtype)
         raw = records.view(np.uint8)
         done = 0
         while done < raw.size:
@@ -460,12 +480,17 @@ def _read_binary(src: _BinaryFile, elements: list[_Element], order: str) -> Poly
     polygons = Polygons()
     xyz = np.empty((0, 3))
     for element in elements:
+        if not element.properties:
+            continue  # records of no bytes, however many
         records = _binary_element(src, element, order)
         if element.name == "vertex":
             xyz = np.zeros((element.count, 3))
-            for j, col in enumerate(element.xyz_columns):
-                if col is not None:
-                    xyz[:, j] = records.scalar(col)
+            # Casting a signalling NaN sets the invalid flag; non-finite
+            # coordinates are refused just below, with their byte offset.
+            with np.errstate(invalid="ignore"):
+                for j, col in enumerate(element.xyz_columns):
+                    if col is not None:
+                        xyz[:, j] = records.scalar(col)
             finite = np.isfinite(xyz).all(axis=1)
             if not finite.all():
                 bad = int(np.argmin(finite))
@@ -503,11 +528,13 @@ def _binary_element(src: _BinaryFile, element: _Element, order: str) -> _Records
                     fields.append((f"p{i}", order + p.type, (int(first[i][0]),)))
                 else:
                     fields.append((f"p{i}", order + p.type))
-            array, complete = src.records(np.dtype(fields), n)
-            lists = [i for i, p in enumerate(props) if p.is_list]
-            if complete == n and all((array[f"n{i}"] == first[i][0]).all() for i in lists):
-                return _Records(element, order, start, array=array)
-            src.seek(start)
+            dtype = np.dtype(fields)
+            if n * dtype.itemsize <= src.remaining():  # else the guess is wrong, or the file truncated
+                array, complete = src.records(dtype, n)
+                lists = [i for i, p in enumerate(props) if p.is_list]
+                if complete == n and all((array[f"n{i}"] == first[i][0]).all() for i in lists):
+                    return _Records(element, order, start, array=array)
+                src.seek(start)
 
     data = src.f.read() if n else b""
     offsets, counts, end = _walk(data, element, order, n, src.path, start)
@@ -531,31 +558,36 @@ def _walk(buf: bytes, element: _Element, order: str, n: int, path: str, start: i
     lists, fixed = [], [0]
     for p in props:
         if p.is_list:
-            count = np.dtype(p.count_type)
-            unpack = struct.Struct(order + count.char).unpack_from
-            lists.append((unpack, count.itemsize, np.dtype(p.type).itemsize))
+            width = np.dtype(p.count_type)
+            unpack = struct.Struct(order + width.char).unpack_from
+            lists.append((unpack, width.itemsize, np.dtype(p.type).itemsize))
             fixed.append(0)
         else:
             fixed[-1] += np.dtype(p.type).itemsize
     head, tails = fixed[0], fixed[1:]
-    starts = [0] * n
-    lengths = [[0] * n for _ in lists]
+    # Every record takes at least its scalars and list counts, so walking one
+    # record more than ``buf`` can hold is sure to find where it ends: the
+    # walk, and its lists, stay within the data whatever the header says.
+    smallest = head + sum(width for _, width, _ in lists) + sum(tails)
+    limit = min(n, len(buf) // smallest + 1)
+    starts = [0] * limit
+    lengths = [[0] * limit for _ in lists]
     pos = r = 0
     try:
         if len(lists) == 1:
-            (unpack, count, item), tail, ks = lists[0], tails[0], lengths[0]
-            for r in range(n):
+            (unpack, width, item), tail, ks = lists[0], tails[0], lengths[0]
+            for r in range(limit):
                 starts[r] = pos
                 k = ks[r] = unpack(buf, pos + head)[0]
-                pos += head + count + k * item + tail
+                pos += head + width + k * item + tail
         else:
-            for r in range(n):
+            for r in range(limit):
                 starts[r] = pos
                 pos += head
-                for j, (unpack, count, item) in enumerate(lists):
+                for j, (unpack, width, item) in enumerate(lists):
                     k = lengths[j][r] = unpack(buf, pos)[0]
-                    pos += count + k * item + tails[j]
-        r = n
+                    pos += width + k * item + tails[j]
+        r = limit
     except struct.error:
         pass  # record r starts past the end of the data
     for ks in lengths:
@@ -565,8 +597,8 @@ def _walk(buf: bytes, element: _Element, order: str, n: int, path: str, start: i
             where = f"byte {start + starts[i]}"
             raise error(path, where, f"negative list count {ks[i]} in {element.name} {i}")
     if r < n or pos > len(buf):
-        ends = starts[1 : r + 1] + ([pos] if r == n else [])
-        bad = next((i for i, e in enumerate(ends) if e > len(buf)), min(r, n - 1))
+        ends = starts[1 : r + 1] + ([pos] if r == limit else [])
+        bad = next((i for i, e in enumerate(ends) if e > len(buf)), min(r, limit - 1))
         raise error(path, f"byte {start + starts[bad]}", f"file ends inside {element.name} {bad} of {n}")
 
     at = np.array(starts, dtype=np.int64)
