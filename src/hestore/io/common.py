@@ -436,7 +436,9 @@ def count_prefixed(values, counts, lead: int, trail: int, exact: bool):
         return None
     row = np.cumsum(counts) - counts
     k = as_indices(values[row + lead])
-    if k is None or (k < 0).any():
+    # A count beyond the row's length is malformed, and refusing it here also
+    # keeps ``need`` below from wrapping around for a count near 2**63.
+    if k is None or (k < 0).any() or (k >= counts).any():
         return None
     need = lead + 1 + k + trail
     if ((counts != need) if exact else (counts < need)).any():
