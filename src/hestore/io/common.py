@@ -130,6 +130,9 @@ def error(path: str, where, what: str) -> InvalidInputError:
 
 
 def show(token: bytes) -> str:
+    """A token as messages quote it; a long one (a runaway number, a binary blob) cut short."""
+    if len(token) > 40:
+        return f"{token[:20].decode('utf-8', 'replace')!r}... ({len(token)} bytes)"
     return repr(token.decode("utf-8", "replace"))
 
 
@@ -312,22 +315,27 @@ class TextFile:
                 return tokens, number
 
     def chunks(self) -> Iterator[Chunk]:
-        carry = b""
+        # The start of a line longer than a block, kept in pieces: joining
+        # them once, when the line ends, keeps reading a file that is one
+        # huge line linear rather than quadratic.
+        pieces: list[bytes] = []
+        held = 0
         while True:
             block = self.f.read(CHUNK_BYTES)
             if not block:
                 break
-            block = self._strip_bom(carry + block if carry else block)
             cut = block.rfind(b"\n") + 1
             if cut == 0:
-                carry = block
+                pieces.append(block)
+                held += len(block)
                 continue
-            carry = block[cut:]
-            yield self._chunk(block[:cut] if carry else block)
+            data = b"".join([*pieces, block[:cut]]) if pieces else block[:cut]
+            pieces, held = ([block[cut:]], len(block) - cut) if cut < len(block) else ([], 0)
+            yield self._chunk(self._strip_bom(data))
             if self.progress is not None:
-                self.progress(self.f.tell() - len(carry), self.size)
-        if carry:
-            yield self._chunk(carry + b"\n")
+                self.progress(self.f.tell() - held, self.size)
+        if pieces:
+            yield self._chunk(self._strip_bom(b"".join(pieces) + b"\n"))
 
     def _chunk(self, data: bytes) -> Chunk:
         chunk = Chunk(data, self.line)
