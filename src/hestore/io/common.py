@@ -22,8 +22,10 @@ finds and names a malformed line. Both must give the same arrays.
 
 from __future__ import annotations
 
+import io
 import math
 import os
+import stat
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -99,8 +101,16 @@ def read_file(path: str | os.PathLike, progress: Progress | None, reader) -> Pol
     """
     name = os.fsdecode(path)
     with open(path, "rb") as f:
-        size = os.fstat(f.fileno()).st_size
-        soup = reader(f, name, size, progress)
+        info = os.fstat(f.fileno())
+        if stat.S_ISREG(info.st_mode):
+            size = info.st_size
+            soup = reader(f, name, size, progress)
+        else:
+            # A pipe or device reports no size to bound header counts by, and
+            # cannot seek (binary PLY peeks): read it whole first.
+            data = f.read()
+            size = len(data)
+            soup = reader(io.BytesIO(data), name, size, progress)
     if progress is not None:
         progress(size, size)
     return soup
