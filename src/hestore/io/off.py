@@ -162,7 +162,7 @@ def _read(src: TextFile) -> PolygonSoup:
             rest, line = more()
         dimension = integer(rest[0], path, line, "dimension")
         if dimension not in (2, 3):
-            raise error(path, line, f"only 2- and 3-dimensional nOFF is supported, found {dimension}")
+            raise error(path, line, f"only 2- and 3-dimensional nOFF is supported, found {show(rest[0])}")
         rest = rest[1:]
     if not rest:
         rest, line = more()
