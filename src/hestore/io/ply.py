@@ -7,7 +7,11 @@ needs x and y (z is optional); its other properties are skipped. The ``face``
 element needs a ``vertex_indices`` (or ``vertex_index``) list; its other
 properties are skipped. Other elements (``edge``, ``material``, even
 ``tristrips``) are skipped, as are ``comment`` and ``obj_info`` lines. A file
-without a ``face`` element is a point set: positions and no polygons.
+without a ``face`` element is a point set: positions and no polygons; one
+with neither a ``vertex`` nor a ``face`` element is empty, as OpenMesh reads
+it. Element counts are at most 2**63 - 1 and must fit in the bytes after the
+header (ASCII: a line of at least two bytes per record; binary: checked
+element by element against the bytes that remain).
 
 ASCII PLY is read like OFF, as sections of lines (`hestore.io.common`).
 Binary elements whose lists all have the same length are read as one
