@@ -36,11 +36,11 @@ array.
 
 A malformed file raises `~hestore.errors.InvalidInputError` with the message
 ``"{path}:{line}: {what}"`` — for binary PLY data ``"{path}:byte {offset}:
-{what}"`` — and `read` returns nothing partial. No file makes a reader raise
-anything else (apart from `OSError` for a file that cannot be read), and
-header counts are never trusted: each is checked against what the rest of
-the file can hold before anything is allocated for it, so memory and time
-stay within a small multiple of the file's size.
+{what}"`` — and `read` returns nothing partial. A malformed file makes a
+reader raise nothing else, and header counts are never trusted: each is
+checked against what the rest of the file can hold before anything is
+allocated for it, so memory and time stay within a small multiple of the
+file's size.
 
 Examples
 --------
