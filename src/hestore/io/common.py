@@ -8,6 +8,8 @@ This module belongs to `hestore.io` and is not public API, apart from
   `~hestore.errors.InvalidInputError` as ``"{path}:{where}: {what}"``;
 * number tokens: the strict per-token conversions of the per-line readers
   and the vectorised `parse` of whole chunks;
+* header counts: `count` parses them strictly and `check_room` bounds them
+  by the bytes left in the file, before any reader allocates for them;
 * text read in chunks of whole lines (`TextFile`, `Chunk`) and tokenised
   with numpy;
 * the section machinery that OFF and ASCII PLY share: runs of content lines
@@ -38,7 +40,9 @@ from hestore.errors import InvalidInputError
 Progress = Callable[[int, int], object]
 
 # Big enough that numpy's per-call overhead vanishes, small enough that the
-# temporary per-byte arrays of a chunk stay in the tens of megabytes.
+# temporary per-byte arrays of a chunk stay in the tens of megabytes. The
+# format modules read it (and `parse`) as ``common.X`` at call time, so that
+# tests can shrink the chunks or disable the vectorised parser.
 CHUNK_BYTES = 1 << 23
 
 # Rows per block when writing text: bounds the size of the formatted strings.
