@@ -10,8 +10,14 @@ import pytest
 
 import hestore
 
+# walk_packages, not iter_modules: subpackages' modules (hestore.io.*) have examples too.
 MODULES = sorted(
-    ["hestore"] + [f"hestore.{m.name}" for m in pkgutil.iter_modules(hestore.__path__) if m.name != "__main__"]
+    ["hestore"]
+    + [
+        m.name
+        for m in pkgutil.walk_packages(hestore.__path__, prefix="hestore.")
+        if m.name.rsplit(".", 1)[-1] != "__main__"
+    ]
 )
 
 

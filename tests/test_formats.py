@@ -1,4 +1,4 @@
-"""OFF, OBJ and PLY reading and writing (`hestore.formats`); no database needed.
+"""OFF, OBJ and PLY reading and writing (`hestore.io`); no database needed.
 
 Most text-file tests run three ways (the ``reader`` fixture): as a user calls
 `formats.read`; with chunks of a few dozen bytes, so that every chunk
@@ -10,14 +10,21 @@ names malformed lines — must give the same arrays and the same errors.
 from __future__ import annotations
 
 import math
+import os
 import pathlib
 import re
 import struct
+import threading
+import time
+import tracemalloc
+import warnings
 
 import numpy as np
 import pytest
 
 from hestore import io as formats
+from hestore.io import common
+from hestore.io import ply as ply_module
 from hestore.errors import InvalidInputError
 from meshes import require_shared_meshes, shared_meshes
 
@@ -26,9 +33,9 @@ from meshes import require_shared_meshes, shared_meshes
 def reader(request, monkeypatch):
     """How text files are read: normally, in 37-byte chunks, or line by line only."""
     if request.param == "tiny-chunks":
-        monkeypatch.setattr(formats, "_CHUNK_BYTES", 37)
+        monkeypatch.setattr(common, "CHUNK_BYTES", 37)
     elif request.param == "per-line":
-        monkeypatch.setattr(formats, "_parse", lambda text, total, dtype: None)
+        monkeypatch.setattr(common, "parse", lambda text, total, dtype: None)
     return request.param
 
 
@@ -176,8 +183,8 @@ def test_writer_refuses_bad_arrays_and_writes_nothing(tmp_path):
 
 
 def test_progress_is_reported_and_ends_complete(tmp_path, monkeypatch):
-    monkeypatch.setattr(formats, "_CHUNK_BYTES", 64)
-    monkeypatch.setattr(formats, "_WRITE_ROWS", 5)
+    monkeypatch.setattr(common, "CHUNK_BYTES", 64)
+    monkeypatch.setattr(common, "WRITE_ROWS", 5)
     offsets, indices = ragged(MIXED)
     for name, binary in [("p.obj", True), ("p.off", True), ("p.ply", False), ("p.ply", True)]:
         written = []
@@ -338,10 +345,11 @@ def test_off_header_variants_and_extra_values(tmp_path, reader):
         ("3 1 0\n0 0 0\n", 1, "expected the OFF keyword, found '3'"),
         ("OFF BINARY\n3 1 0\n", 1, "binary OFF is not supported"),
         ("4OFF\n3 1 0\n", 1, "homogeneous"),
-        ("nOFF\n5\n3 1 0\n", 2, "only 2- and 3-dimensional"),
+        ("nOFF\n5\n3 1 0\n", 2, "only 2- and 3-dimensional nOFF is supported, found '5'"),
+        ("nOFF\n99999999999999999999\n3 1 0\n", 2, "found '99999999999999999999'"),
         ("OFF\n\n3 x 0\n", 3, "count 'x' is not an integer"),
         ("OFF\n3\n0 0 0\n", 2, "expected the vertex, face and edge counts, found '3'"),
-        ("OFF\n3 -1 0\n", 2, "negative count"),
+        ("OFF\n3 -1 0\n", 2, "count '-1' is negative"),
         ("OFF\n", 1, "file ends inside the OFF header"),
         ("OFF\n3 1 0\n0 0 0\n1 0 0\n", 4, "file ends after 2 of 3 vertices"),
         ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n# end\n", 7, "file ends after 1 of 2 faces"),
@@ -482,7 +490,8 @@ NO_VERTICES = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproper
         ("ply\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n", 5, "no format line"),
         ("ply\nformat ascii 1.0\nproperty float x\n", 3, "property before any element"),
         ("ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\n", 4, "unknown PLY property type 'float128'"),
-        ("ply\nformat ascii 1.0\nelement vertex -1\n", 3, "expected 'element <name> <count>'"),
+        ("ply\nformat ascii 1.0\nelement vertex -1\n", 3, "element vertex count '-1' is negative"),
+        ("ply\nformat ascii 1.0\nelement vertex 3\nelement face\n", 4, "expected 'element <name> <count>'"),
         (
             "ply\nformat ascii 1.0\nelement vertex 1\nproperty list float int x\n",
             4,
@@ -568,13 +577,233 @@ def test_binary_ply_extra_bytes_and_files_without_faces(tmp_path):
     assert_soup(soup, TRIANGLE, [], None)
 
 
+# -- untrusted input: typed errors, bounded work ---------------------------------
+
+# A read of a file of a few KB needs a few MB (the soup, the parsing
+# temporaries, an 8 MB read buffer); one that trusts a header count asks for
+# gigabytes. tracemalloc sees numpy's allocations too.
+SMALL_PEAK = 32 << 20
+
+
+def refused_cheaply(path: pathlib.Path, where, fragment: str) -> None:
+    """Like `assert_refused`, and the read allocated little and took little time on the way."""
+    tracemalloc.start()
+    started = time.perf_counter()
+    try:
+        assert_refused(path, where, fragment)
+    finally:
+        seconds = time.perf_counter() - started
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert peak < SMALL_PEAK, f"allocated {peak / 2**20:.0f} MiB before refusing"
+    assert seconds < 2, f"took {seconds:.1f} s to refuse"
+
+
+def binary_ply_head(vertices, faces=None, face_props="property list uchar int vertex_indices\n") -> bytes:
+    head = f"ply\nformat binary_little_endian 1.0\nelement vertex {vertices}\n"
+    head += "property float x\nproperty float y\nproperty float z\n"
+    if faces is not None:
+        head += f"element face {faces}\n" + face_props
+    return (head + "end_header\n").encode()
+
+
+ASCII_XYZ = "property float x\nproperty float y\nproperty float z\n"
+
+
+def test_huge_binary_ply_vertex_count_in_a_tiny_file_is_refused_without_allocating(tmp_path):
+    # 4294967296 records of 12 bytes: 48 GiB, which the reader used to allocate first.
+    head = binary_ply_head(4294967296)
+    path = put(tmp_path, "big.ply", head + bytes(10_000))
+    refused_cheaply(path, f"byte {len(head) + 833 * 12}", "file ends inside vertex 833 of 4294967296")
+
+
+def test_huge_binary_ply_face_counts_are_refused_without_allocating(tmp_path):
+    triangle = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0)
+    one_face = struct.pack("<B3i", 3, 0, 1, 2)
+    # Uniform lists: the structured-array guess must not be allocated for the declared count.
+    head = binary_ply_head(3, 2**32)
+    path = put(tmp_path, "uniform.ply", head + triangle + one_face * 500)
+    refused_cheaply(path, f"byte {len(head) + 36 + 500 * 13}", "file ends inside face 500 of 4294967296")
+    # A first list of 200 items makes a 801-byte guessed record; 10**8 of them would be 75 GiB.
+    head = binary_ply_head(3, 10**8)
+    path = put(tmp_path, "guess.ply", head + triangle + struct.pack("<B", 200) + bytes(800) + one_face * 20)
+    refused_cheaply(path, f"byte {len(head) + 36 + 801 + 20 * 13}", "file ends inside face 21 of 100000000")
+    # Varying lists: the record walk must stop where the data ends, not at the count.
+    data = head + triangle + one_face + struct.pack("<B4i", 4, 0, 1, 2, 0) + bytes(3000)
+    refused_cheaply(put(tmp_path, "walk.ply", data), f"byte {len(data)}", "file ends inside face 3002 of 100000000")
+    # A list count of 2**32 - 1 items in a small file.
+    head = binary_ply_head(3, 1, "property list uint int vertex_indices\n")
+    path = put(tmp_path, "list.ply", head + triangle + struct.pack("<I", 2**32 - 1) + bytes(64))
+    refused_cheaply(path, f"byte {len(head) + 36}", "file ends inside face 0 of 1")
+
+
+@pytest.mark.parametrize("count", ["4294967296", str(2**62)])
+def test_huge_ascii_ply_counts_are_refused_at_their_header_line(tmp_path, count):
+    text = f"ply\nformat ascii 1.0\nelement vertex {count}\n{ASCII_XYZ}end_header\n" + "0 0 0\n" * 1000
+    refused_cheaply(put(tmp_path, "big.ply", text), 3, f"{count} vertex records cannot fit in the 6000 bytes left")
+    text = f"ply\nformat ascii 1.0\nelement vertex 3\n{ASCII_XYZ}element face {count}\n"
+    text += "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    refused_cheaply(put(tmp_path, "faces.ply", text), 7, f"{count} face records cannot fit")
+
+
+@pytest.mark.parametrize("count", [str(2**63), "18446744073709551616", "99999999999999999999", "0" + "9" * 20])
+def test_counts_beyond_int64_are_refused_with_file_and_line(tmp_path, count):
+    refused_cheaply(put(tmp_path, "v.off", f"OFF\n{count} 1 0\n0 0 0\n"), 2, f"count '{count}' is too large")
+    refused_cheaply(put(tmp_path, "f.off", f"OFF\n# c\n3 {count} 0\n0 0 0\n"), 3, f"count '{count}' is too large")
+    text = f"ply\nformat ascii 1.0\nelement vertex {count}\n{ASCII_XYZ}end_header\n"
+    refused_cheaply(put(tmp_path, "v.ply", text), 3, f"element vertex count '{count}' is too large")
+    data = binary_ply_head(3).replace(b"end_header", f"element edge {count}\nend_header".encode()) + bytes(36)
+    refused_cheaply(put(tmp_path, "e.ply", data), 7, f"element edge count '{count}' is too large")
+
+
+def test_a_count_of_thousands_of_digits_is_refused_and_shown_short(tmp_path):
+    digits = "9" * 5000  # past Python's int() digit limit, which raised a bare ValueError
+    text = f"ply\nformat ascii 1.0\nelement vertex {digits}\n{ASCII_XYZ}end_header\n"
+    with pytest.raises(InvalidInputError, match=r"v\.ply:3: element vertex count '9{20}'\.\.\. \(5000 bytes\)") as e:
+        formats.read(put(tmp_path, "v.ply", text))
+    assert len(str(e.value)) < 200 + len(str(tmp_path))
+    refused_cheaply(put(tmp_path, "v.off", f"OFF\n3 {digits} 0\n"), 2, "(5000 bytes) is too large")
+
+
+@pytest.mark.parametrize("count", [str(2**63 - 1), str(2**40)])
+def test_off_counts_that_fit_int64_but_not_the_file_are_refused_at_the_header(tmp_path, count):
+    refused_cheaply(put(tmp_path, "v.off", f"OFF\n{count} 1 0\n0 0 0\n"), 2, f"{count} vertices cannot fit")
+    text = f"OFF\n3 {count} 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    refused_cheaply(put(tmp_path, "f.off", text), 2, f"{count} faces after the vertices cannot fit")
+
+
+def test_counts_that_exactly_fit_are_accepted(tmp_path):
+    # The bound is a true one: the shortest records, the last without its line break.
+    assert_soup(formats.read(put(tmp_path, "p.off", "OFF\n2 1\n0 0\n1 1\n0")), [(0, 0, 0), (1, 1, 0)], [[]], [5])
+    text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nelement c 2\n"
+    text += "property uchar c\nend_header\n1 2\n3 4\n5\n6"
+    assert_soup(formats.read(put(tmp_path, "p.ply", text)), [(1, 2, 0), (3, 4, 0)], [], [])
+
+
+@pytest.mark.parametrize(
+    "text, line, fragment",
+    [
+        ("OFF\n-3 1 0\n", 2, "count '-3' is negative"),
+        ("OFF\n3 -9223372036854775809 0\n", 2, "count '-9223372036854775809' is negative"),
+        ("OFF\n3.0 1 0\n", 2, "count '3.0' is not an integer"),
+        ("OFF\n+3 1 0\n", 2, "count '+3' is not an integer"),
+        ("OFF\n3_0 1 0\n", 2, "count '3_0' is not an integer"),
+        ("OFF\n0x3 1 0\n", 2, "count '0x3' is not an integer"),
+        ("OFF\n\u0663 1 0\n", 2, "count '\u0663' is not an integer"),
+        ("OFF\n3 1 0\x00\n", 2, "is not an integer"),
+        ("ply\nformat ascii 1.0\nelement vertex -0\n", 3, "element vertex count '-0' is negative"),
+        ("ply\nformat ascii 1.0\nelement vertex 1e3\n", 3, "element vertex count '1e3' is not an integer"),
+        ("ply\nformat ascii 1.0\nelement vertex \u00b2\n", 3, "is not an integer"),  # a superscript two
+        ("ply\nformat ascii 1.0\nelement vertex 3\x00\n", 3, "is not an integer"),
+    ],
+)
+def test_negative_and_non_integer_header_counts_name_file_and_line(tmp_path, text, line, fragment):
+    refused_cheaply(put(tmp_path, "bad" + (".off" if text.startswith("OFF") else ".ply"), text), line, fragment)
+
+
+def test_a_face_count_near_2_63_is_refused_not_wrapped_around(tmp_path, reader):
+    # The vectorised reader's "enough values for k indices?" check used to
+    # overflow and return a polygon of 2**63 - 1 vertices holding 3 indices.
+    for k in [2**63 - 1, 2**63 - 2, 2**62]:
+        text = f"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n{k} 0 1 2\n"
+        assert_refused(put(tmp_path, "k.off", text), 6, f"face of {k} vertices has only 3 indices")
+        text = PLY_HEAD + f"0 0 0\n1 0 0\n0 1 0\n{k} 0 1 2\n"
+        assert_refused(put(tmp_path, "k.ply", text), 13, f"vertex_indices of {k} items has only 3")
+
+
+@pytest.mark.parametrize("fmt", PLY_FORMATS)
+def test_ply_without_vertex_and_face_elements_is_an_empty_soup(tmp_path, fmt):
+    lines = None if fmt != "ascii" else []
+    assert_soup(formats.read(put(tmp_path, "e.ply", ply(fmt, []))), [], [], lines)
+    # Other elements are still read (and skipped), as OpenMesh does.
+    elements = [("material", [("uchar", "red"), ("list", "uchar", "float", "k")], [[1, [0.5]], [2, []]])]
+    assert_soup(formats.read(put(tmp_path, "m.ply", ply(fmt, elements))), [], [], lines)
+    truncated = ply(fmt, elements)[:-4]  # into the last material record
+    with pytest.raises(InvalidInputError, match="material"):
+        formats.read(put(tmp_path, "t.ply", truncated))
+
+
+@pytest.mark.parametrize("fmt", PLY_FORMATS)
+def test_ply_face_element_without_vertex_element_is_refused(tmp_path, fmt):
+    elements = [("face", [("list", "uchar", "int", "vertex_indices")], [[[0, 1, 2]]])]
+    refused_cheaply(put(tmp_path, "f.ply", ply(fmt, elements)), 5, "declares a face element but no vertex element")
+
+
+@pytest.mark.parametrize("fmt", PLY_FORMATS)
+def test_ply_elements_without_properties_take_no_room_whatever_their_count(tmp_path, fmt):
+    elements = [("vertex", XYZ, TRIANGLE)]
+    data = ply(fmt, elements).replace(b"end_header", f"element nothing {2**62}\nend_header".encode())
+    tracemalloc.start()
+    try:
+        soup = formats.read(put(tmp_path, "n.ply", data))
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert_soup(soup, TRIANGLE, [])
+    assert peak < SMALL_PEAK
+
+
+def test_non_utf8_and_nul_bytes_give_typed_errors(tmp_path):
+    head = b"ply\nformat ascii 1.0\n"
+    refused_cheaply(put(tmp_path, "k.ply", head + b"\xff\xfe\x00 vertex 1\n"), 3, "unknown PLY header keyword")
+    refused_cheaply(put(tmp_path, "t.ply", head + b"element vertex 1\nproperty fl\xc3oat x\n"), 4, "unknown PLY property")
+    refused_cheaply(put(tmp_path, "n.ply", b"ply\x00\n"), 1, "not a PLY file")
+    soup = formats.read(put(tmp_path, "c.ply", head + b"comment caf\xe9 \x00\nelement vertex 0\nproperty float x\n"
+                            b"property float y\nend_header\n"))
+    assert_soup(soup, [], [], [])
+    refused_cheaply(put(tmp_path, "o.off", b"\xffOFF\n3 1 0\n"), 1, "expected the OFF keyword")
+    refused_cheaply(put(tmp_path, "z.off", b"OFF\n1 0 0\n0 0\x00 0\n"), 3, "expected a number")
+    refused_cheaply(put(tmp_path, "z.obj", b"v 0 0 0\nv 1 \xff 0\n"), 2, "expected a number")
+    refused_cheaply(put(tmp_path, "f.obj", b"v 0 0 0\nf 1 \x00 1\n"), 2, "is not an integer")
+
+
+def test_a_long_header_line_is_not_quoted_whole(tmp_path):
+    path = put(tmp_path, "x.ply", b"ply\nformat ascii 1.0\n" + b"x" * 1_000_000 + b"\nend_header\n")
+    with pytest.raises(InvalidInputError, match=r"unknown PLY header keyword 'x{20}'\.\.\. \(1000000 bytes\)") as e:
+        formats.read(path)
+    assert len(str(e.value)) < 200 + len(str(path))
+
+
+def test_a_line_longer_than_many_chunks_is_read_in_linear_time(tmp_path, monkeypatch):
+    # Every chunk without a line break used to be re-copied with all the
+    # ones before it: quadratic in the line's length.
+    monkeypatch.setattr(common, "CHUNK_BYTES", 64)
+    text = "v 0 0 0\n# " + "x" * 4_000_000 + "\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    started = time.perf_counter()
+    soup = formats.read(put(tmp_path, "long.obj", text))
+    assert time.perf_counter() - started < 5
+    assert_soup(soup, TRIANGLE, [[0, 1, 2]], [5])
+
+
+def test_binary_ply_signalling_nan_is_refused_without_a_warning(tmp_path):
+    data = binary_ply_head(1) + struct.pack("<fI f", 0.0, 0x7FA00000, 0.0)  # x, a signalling NaN, z
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        refused_cheaply(put(tmp_path, "s.ply", data), f"byte {len(data) - 12}", "vertex 0 has a non-finite coordinate")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize("name", ["p.off", "p.ply"])
+def test_a_named_pipe_is_read_whole_as_it_has_no_size(tmp_path, name):
+    source = tmp_path / ("source" + name[1:])
+    formats.write(source, TRIANGLE, [0, 3], [0, 1, 2])
+    pipe = tmp_path / name
+    os.mkfifo(pipe)
+    writer = threading.Thread(target=lambda: pipe.write_bytes(source.read_bytes()))
+    writer.start()
+    try:
+        assert_soup(formats.read(pipe), TRIANGLE, [[0, 1, 2]])
+    finally:
+        writer.join(timeout=10)
+
+
 # -- the shared outside meshes ----------------------------------------------------
 
 
 def naive_read(path: pathlib.Path, keep=lambda i: True):
     """The independent check: a deliberately plain reader, one line or record at a time.
 
-    It shares no code with `hestore.formats` and uses no numpy, so agreeing
+    It shares no code with `hestore.io` and uses no numpy, so agreeing
     with it means something. Returns ``(vertex count, {i: position},
     polygon count, {i: (indices, line)})`` for the vertices and polygons
     that ``keep(i)`` selects (lines are None in binary PLY).
@@ -712,8 +941,8 @@ def test_shared_mesh_matches_the_naive_reader(name):
 def test_shared_mesh_per_line_reader_agrees(name, monkeypatch):
     path = require_shared_meshes() / name
     vectorised = formats.read(path)
-    monkeypatch.setattr(formats, "_parse", lambda text, total, dtype: None)
-    monkeypatch.setattr(formats._BinaryFile, "peek", lambda self, n: b"")  # binary PLY: the record walk
+    monkeypatch.setattr(common, "parse", lambda text, total, dtype: None)
+    monkeypatch.setattr(ply_module._BinaryFile, "peek", lambda self, n: b"")  # binary PLY: the record walk
     per_line = formats.read(path)
     for field in ("positions", "offsets", "indices", "lines"):
         a, b = getattr(vectorised, field), getattr(per_line, field)
