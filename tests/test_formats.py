@@ -746,7 +746,8 @@ def test_ply_elements_without_properties_take_no_room_whatever_their_count(tmp_p
 def test_non_utf8_and_nul_bytes_give_typed_errors(tmp_path):
     head = b"ply\nformat ascii 1.0\n"
     refused_cheaply(put(tmp_path, "k.ply", head + b"\xff\xfe\x00 vertex 1\n"), 3, "unknown PLY header keyword")
-    refused_cheaply(put(tmp_path, "t.ply", head + b"element vertex 1\nproperty fl\xc3oat x\n"), 4, "unknown PLY property")
+    bad_type = head + b"element vertex 1\nproperty fl\xc3oat x\n"
+    refused_cheaply(put(tmp_path, "t.ply", bad_type), 4, "unknown PLY property")
     refused_cheaply(put(tmp_path, "n.ply", b"ply\x00\n"), 1, "not a PLY file")
     soup = formats.read(put(tmp_path, "c.ply", head + b"comment caf\xe9 \x00\nelement vertex 0\nproperty float x\n"
                             b"property float y\nend_header\n"))

@@ -240,7 +240,8 @@ def check_room(path: str, line: int, records: int, what: str, room: int, per_rec
     reader allocate or loop beyond a small multiple of the file's size.
     """
     if records * per_record > room + slack:
-        raise error(path, line, f"{records} {what} cannot fit in the {max(room, 0)} bytes left (each needs {per_record})")
+        left = max(room, 0)
+        raise error(path, line, f"{records} {what} cannot fit in the {left} bytes left (each needs {per_record})")
 
 
 # The fewest bytes a record of a text file takes: a character and a line

@@ -73,7 +73,8 @@ def read_off(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     >>> import pathlib, tempfile
     >>> folder = tempfile.TemporaryDirectory()
     >>> path = pathlib.Path(folder.name) / "triangle.off"
-    >>> _ = path.write_text("COFF\\n# a coloured triangle\\n3 1 0\\n0 0 0 255 0 0\\n1 0 0 0 255 0\\n0 1 0 0 0 255\\n3 0 1 2\\n")
+    >>> text = "COFF\\n# a coloured triangle\\n3 1 0\\n0 0 0 255 0 0\\n1 0 0 0 255 0\\n0 1 0 0 0 255\\n3 0 1 2\\n"
+    >>> _ = path.write_text(text)
     >>> soup = read_off(path)
     >>> soup.positions.tolist(), soup.indices, soup.lines
     ([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], array([0, 1, 2]), array([7]))
