@@ -1017,3 +1017,66 @@ def test_progress_bar_after_a_failure():
     quiet = io.StringIO()
     progress.ProgressBar(quiet).close()  # never called: nothing to say
     assert quiet.getvalue() == ""
+
+
+# -- Ctrl-C ------------------------------------------------------------------------
+
+
+def _import_is_writing(db_url: str, backend: str, path: Path) -> bool:
+    """Whether the import has reached its write stage (rows are flowing into the database)."""
+    if backend == "sqlite":
+        wal = Path(sa.make_url(db_url).database + "-wal")
+        return wal.exists() and wal.stat().st_size > (1 << 20)
+    engine = sa.create_engine(db_url, poolclass=sa.pool.NullPool)
+    try:
+        with engine.connect() as conn:
+            copying = "SELECT count(*) FROM pg_stat_activity WHERE query LIKE 'COPY %' AND pid <> pg_backend_pid()"
+            return bool(conn.execute(sa.text(copying)).scalar())
+    finally:
+        engine.dispose()
+
+
+def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url, backend, tmp_path):
+    import signal
+    import time
+
+    from meshes import require_shared_meshes
+
+    source = require_shared_meshes() / "igea-subdiv1.ply"  # about 7 s of writing: time to interrupt it
+    hestore.open(db_url).close()  # the schema exists before the import starts
+    env = {k: v for k, v in os.environ.items() if k != "HESTORE_URL"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hestore", "--db", db_url, "import", str(source)],
+        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not _import_is_writing(db_url, backend, source):
+            assert proc.poll() is None, f"the import ended before it could be interrupted: {proc.communicate()}"
+            assert time.monotonic() < deadline, "the import never started writing"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, (out, err)
+    assert err.startswith("hestore: interrupted") and err.count("\n") == 1, err
+    assert "Traceback" not in err and out == ""
+    with hestore.open(db_url) as store:  # the database opens at once, and holds nothing half-stored
+        assert store.meshes() == []
+        with store.session.reading() as conn:
+            for table in ("vertices", "halfedges", "edges", "polygons"):
+                assert conn.execute(sa.text(f"SELECT count(*) FROM {table}")).scalar() == 0
+        assert store.import_arrays("after", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh.check() == []
+
+
+def test_an_unexpected_error_is_one_line_too(capsys, url, monkeypatch):
+    def broken(args):
+        raise RuntimeError("something nobody expected")
+
+    monkeypatch.setattr(cli, "_cmd_list", broken)
+    monkeypatch.delenv(cli.DEBUG_ENVIRONMENT, raising=False)
+    code, out, err = run(capsys, "--db", url, "list")
+    assert_one_line_error(code, out, err)
+    assert "unexpected RuntimeError: something nobody expected" in err and cli.DEBUG_ENVIRONMENT in err

@@ -228,3 +228,32 @@ def test_mutations_reproduce_from_their_seed():
 def _put(path: pathlib.Path, data: bytes) -> pathlib.Path:
     path.write_bytes(data)
     return path
+
+
+STORE_CASES = 40  # mutants per source file imported into a store, on each backend
+
+
+@pytest.mark.parametrize("name", SOURCES)
+def test_mutated_files_import_whole_or_not_at_all(name, store, tmp_path):
+    """Through a store: every failure is typed, nothing is stored, and what is stored is valid."""
+    import hestore
+    from helpers import dump
+
+    data, _ = _source(name)
+    suffix = pathlib.Path(name).suffix
+    for case in range(STORE_CASES):
+        seed = f"store:{name}:{case}"
+        mutant, what = mutate(data, name, seed)
+        path = _put(tmp_path / f"m{case}{suffix}", mutant)
+        before = dump(store)
+        context = f"seed {seed!r}, mutations {what}"
+        t0 = time.monotonic()
+        try:
+            report = store.import_file(path, f"m{case}", on_error="skip")
+        except hestore.HestoreError as exc:
+            assert isinstance(exc, (InvalidInputError, hestore.TopologyError)), f"{context}: {exc!r}"
+            assert dump(store) == before, f"{context}: a refused import stored something"
+        else:
+            assert report.mesh.check() == [], context
+            assert report.mesh.counts().polygons == report.polygons, context
+        assert time.monotonic() - t0 < SECONDS, f"{context}: took too long"

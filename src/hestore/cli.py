@@ -13,15 +13,22 @@ components|path A B|degree-histogram|export FILE`` (networkx, through
 `hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
 
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
-found no path, 2 error.
+found no path, 2 error, 130 interrupted.
 
 ``import`` and ``export`` report progress through `ProgressBar`, on stderr:
 a redrawn bar on a terminal, and only a plain final line elsewhere, so that
 logs carry no control characters. Results go to stdout.
 
-The ``db`` commands work below the store: `hestore.open` refuses a database
-whose schema is behind (that refusal is what tells users to run
-``hestore db upgrade``), so they use an engine and `hestore.migrate` directly.
+The command line is thin: URLs are `hestore.urls`'s, schema states
+`hestore.migrate`'s, graph files `hestore.graphio`'s and the progress bar
+`hestore.progress`'s. The ``db`` commands work below the store (`hestore.open`
+refuses a database whose schema is behind; that refusal is what tells users
+to run ``hestore db upgrade``): they call `hestore.migrate.database_state`
+and `hestore.migrate.upgrade_database`.
+
+Ctrl-C stops any command with one line and exit status 130; its writes,
+one transaction, are rolled back. An unexpected error is one line too
+(``HESTORE_DEBUG=1`` shows its traceback).
 """
 
 from __future__ import annotations

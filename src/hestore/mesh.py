@@ -28,7 +28,7 @@ from hestore.errors import (
     TopologyError,
     Violation,
 )
-from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id
+from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
 
@@ -153,8 +153,8 @@ class Mesh:
             exc.elements = tuple(_KIND_OF[kind](self, i) for kind, i in exc.refs if kind in _KIND_OF)
             raise
 
-    def _fetch(self, key: str, build, **values) -> list[tuple]:
-        return self.session.fetch(self.ref, key, build, values)
+    def _fetch(self, key: str, build) -> list[tuple]:
+        return self.session.fetch(self.ref, key, build, {})
 
     # -- summaries ----------------------------------------------------------
 
@@ -196,9 +196,9 @@ class Mesh:
     # -- lookup and iteration -----------------------------------------------
 
     def _lookup(self, kind: type, what: str, i: object) -> Handle:
-        i = element_id(i, what)
-        navigation.exists(self, what, i)
-        return kind(self, i)
+        handle = kind(self, i)  # refuses what cannot be an id
+        navigation.exists(self, what, handle.id)
+        return handle
 
     def vertex(self, id: int) -> Vertex:
         """The vertex with this id (`ElementNotFoundError` if there is none).

@@ -49,7 +49,7 @@ __all__ = [
 _H = schema.halfedges
 
 
-def _rows(mesh: "Mesh", key: str, build, **values) -> list[tuple]:
+def _rows(mesh: "Mesh", key, build, values: dict) -> list[tuple]:
     return mesh.session.fetch(mesh.ref, key, build, values)
 
 
@@ -60,7 +60,7 @@ def _build_mesh():
 
 def missing(mesh: "Mesh", kind: str, i: int) -> ElementNotFoundError:
     """The error for element ``i`` of ``kind`` not found: `MeshNotFoundError` if the mesh is gone."""
-    if not _rows(mesh, "nav_mesh", _build_mesh):
+    if not _rows(mesh, "nav_mesh", _build_mesh, {}):
         return mesh.session.missing(mesh.ref)
     return ElementNotFoundError(f"{kind} {i} does not exist in mesh {mesh.name!r} (removed, or never created)")
 
@@ -68,15 +68,22 @@ def missing(mesh: "Mesh", kind: str, i: int) -> ElementNotFoundError:
 _TABLES = {"vertex": schema.vertices, "half-edge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
 
 
+def _exists_query(table: sa.Table):
+    def build():
+        return sa.select(sa.literal_column("1")).where(
+            table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i")
+        )
+
+    return f"nav_exists_{table.name}", build
+
+
+_EXISTS = {kind: _exists_query(table) for kind, table in _TABLES.items()}
+
+
 def exists(mesh: "Mesh", kind: str, i: int) -> None:
     """Raise unless element ``i`` of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``) exists."""
-    table = _TABLES[kind]
-
-    def build():
-        key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i")
-        return sa.select(sa.literal_column("1")).where(*key)
-
-    if not _rows(mesh, ("nav_exists", kind), build, i=i):
+    key, build = _EXISTS[kind]
+    if not mesh.session.fetch(mesh.ref, key, build, {"i": i}):
         raise missing(mesh, kind, i)
 
 
@@ -94,7 +101,7 @@ def _build_he():
 
 def halfedge_record(mesh: "Mesh", h: int) -> tuple:
     """``(origin, next, prev, twin, edge, polygon, target)`` of half-edge ``h``, in one query."""
-    rows = _rows(mesh, "nav_he", _build_he, i=h)
+    rows = _rows(mesh, "nav_he", _build_he, {"i": h})
     if not rows:
         raise missing(mesh, "half-edge", h)
     return rows[0]
@@ -128,7 +135,7 @@ def _build_v():
 
 def vertex_row(mesh: "Mesh", v: int) -> tuple:
     """``(halfedge, x, y, z)`` of vertex ``v`` (``halfedge`` None if isolated, coordinates None without a position)."""
-    rows = _rows(mesh, "nav_v", _build_v, i=v)
+    rows = _rows(mesh, "nav_v", _build_v, {"i": v})
     if not rows:
         raise missing(mesh, "vertex", v)
     return rows[0]
@@ -147,29 +154,35 @@ def _build_star():
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def star(mesh: "Mesh", v: int) -> list[tuple]:
-    """Outgoing half-edges of vertex ``v`` as ``(id, prev, twin, edge, polygon, target)``, CCW from ``v.halfedge``.
+#: Fields of a `star` row.
+STAR_ID, STAR_PREV, STAR_TWIN, STAR_EDGE, STAR_POLYGON, STAR_TARGET = range(1, 7)
 
-    One query for the whole star, ordered here: ``onext(h) = twin(prev(h))``.
+
+def star(mesh: "Mesh", v: int) -> list[tuple]:
+    """Outgoing half-edges of vertex ``v``, counter-clockwise from ``v.halfedge``.
+
+    Each row is ``(v.halfedge, id, prev, twin, edge, polygon, target)`` (the
+    `STAR_ID` ... `STAR_TARGET` fields). One query for the whole star,
+    ordered here: ``onext(h) = twin(prev(h))``, so the row after ``r`` is the
+    one whose twin is ``r``'s prev.
     """
-    rows = _rows(mesh, "nav_star", _build_star, i=v)
+    rows = _rows(mesh, "nav_star", _build_star, {"i": v})
     if not rows:
         raise missing(mesh, "vertex", v)
     start = rows[0][0]
     if start is None:
         return []
-    by_id = {r[1]: r[1:] for r in rows}
-    out_of_twin = {r[3]: r[1] for r in rows}
+    n = len(rows)
+    after = {r[3]: r for r in rows}  # incoming half-edge -> the outgoing row it is the twin of
+    r = next((r for r in rows if r[1] == start), None)
     ordered = []
-    h = start
-    for _ in range(len(rows)):
-        rec = by_id.get(h)
-        if rec is None:
+    while r is not None and len(ordered) < n:
+        ordered.append(r)
+        r = after.get(r[2])
+        if r is not None and r[1] == start:
             break
-        ordered.append(rec)
-        h = out_of_twin.get(rec[1])  # onext(h) = twin(prev(h))
-        if h == start:
-            return ordered
+    if r is not None and r[1] == start and len(ordered) == n:
+        return ordered
     raise InvariantViolationError(
         [Violation("V_ROTATION", "vertex", (v,), f"the rotation around vertex {v} does not close; run check()")]
     )
@@ -189,7 +202,7 @@ def is_boundary_vertex(mesh: "Mesh", v: int) -> bool:
 
     O(1): by the boundary convention ``v.halfedge`` is free if any is.
     """
-    rows = _rows(mesh, "nav_vfree", _build_vfree, i=v)
+    rows = _rows(mesh, "nav_vfree", _build_vfree, {"i": v})
     if not rows:
         raise missing(mesh, "vertex", v)
     return rows[0][0] is None or rows[0][1] is None
@@ -216,7 +229,7 @@ def ring(mesh: "Mesh", p: int) -> list[tuple]:
 
     In ``next`` order from ``p.halfedge``; one query for the whole ring.
     """
-    rows = _rows(mesh, "nav_ring", _build_ring, i=p)
+    rows = _rows(mesh, "nav_ring", _build_ring, {"i": p})
     if not rows:
         raise missing(mesh, "polygon", p)
     start = rows[0][0]
@@ -243,7 +256,7 @@ def _build_p():
 
 def polygon_halfedge(mesh: "Mesh", p: int) -> int:
     """The half-edge stored for polygon ``p``."""
-    rows = _rows(mesh, "nav_p", _build_p, i=p)
+    rows = _rows(mesh, "nav_p", _build_p, {"i": p})
     if not rows:
         raise missing(mesh, "polygon", p)
     return rows[0][0]
@@ -266,7 +279,7 @@ def _build_e():
 
 def edge_row(mesh: "Mesh", e: int) -> tuple:
     """``(h, twin, origin(h), origin(twin), polygon(h), polygon(twin))`` of edge ``e``, ``h`` its half-edge."""
-    rows = _rows(mesh, "nav_e", _build_e, i=e)
+    rows = _rows(mesh, "nav_e", _build_e, {"i": e})
     if not rows:
         raise missing(mesh, "edge", e)
     return rows[0]
@@ -291,7 +304,7 @@ def find_halfedge(mesh: "Mesh", a: int, b: int) -> int | None:
     """A half-edge from vertex ``a`` to vertex ``b``, a free one if any (lowest id); ``None`` if none."""
     exists(mesh, "vertex", a)
     exists(mesh, "vertex", b)
-    rows = _rows(mesh, "nav_find", _build_find, a=a, b=b)
+    rows = _rows(mesh, "nav_find", _build_find, {"a": a, "b": b})
     return rows[0][0] if rows else None
 
 
@@ -302,7 +315,7 @@ def ids(mesh: "Mesh", kind: str) -> list[int]:
     def build():
         return sa.select(table.c.id).where(table.c.mesh_id == sa.bindparam("m")).order_by(table.c.id)
 
-    found = [r[0] for r in _rows(mesh, ("nav_ids", kind), build)]
-    if not found and not _rows(mesh, "nav_mesh", _build_mesh):
+    found = [r[0] for r in _rows(mesh, ("nav_ids", kind), build, {})]
+    if not found and not _rows(mesh, "nav_mesh", _build_mesh, {}):
         raise mesh.session.missing(mesh.ref)
     return found

@@ -49,8 +49,8 @@ the session's DBAPI cursor; nothing outside this module holds it.
 
 from __future__ import annotations
 
-import threading
 from contextlib import contextmanager
+from threading import get_ident
 from typing import Any, Callable, Iterator
 
 import sqlalchemy as sa
@@ -167,7 +167,7 @@ class Session:
         self.is_memory = urls.is_memory(url)
         #: Derived data kept for the session's lifetime (graph views), dropped by `close`.
         self.caches: dict[str, Any] = {}
-        self._thread = threading.get_ident()
+        self._thread = get_ident()
         self._closed = True
         self._scopes: list[str] = []
         self._uows: dict[int, UnitOfWork] = {}
@@ -177,10 +177,14 @@ class Session:
         self._born: list[MeshRef] = []
         self._failed = False
         self._engine = drivers.make_engine(url, busy_timeout=self.busy_timeout)
-        with self._guard(f"cannot open {self.shown_url}"):
-            self._conn = self._engine.connect()
-            self._raw = self._conn.connection.dbapi_connection
-            self._cur = self._raw.cursor()
+        try:
+            with self._guard(f"cannot open {self.shown_url}"):
+                self._conn = self._engine.connect()
+                self._raw = self._conn.connection.dbapi_connection
+                self._cur = self._raw.cursor()
+        except BaseException:
+            self._engine.dispose()
+            raise
         self._closed = False
         self.dialect = self._engine.dialect
         self.statements = StatementCache(self.dialect)
@@ -197,15 +201,20 @@ class Session:
     # -- who may use it ------------------------------------------------------
 
     def check(self) -> None:
-        """Raise unless the session is open and this is the thread that opened it."""
-        if self._thread != threading.get_ident():
+        """Raise unless the session is usable: open, in the thread that opened it, its block not failed."""
+        if self._thread != get_ident():
             raise WrongThreadError(
                 f"the store on {self.shown_url} was opened in thread {self._thread} and is used from thread "
-                f"{threading.get_ident()}; a store belongs to one thread: open one per thread"
+                f"{get_ident()}; a store belongs to one thread: open one per thread"
             )
         if self._closed:
             raise HestoreError(
                 f"the store on {self.shown_url} is closed; nothing more can be read or written through it"
+            )
+        if self._failed:
+            raise StoreError(
+                "a write in this transaction block failed, so the block can only be left "
+                "(its changes are rolled back when it ends)"
             )
 
     def _alive(self, ref: MeshRef) -> None:
@@ -326,7 +335,7 @@ class Session:
         """Roll back anything uncommitted, close the connection, drop the caches."""
         if self._closed:
             return
-        if self._thread != threading.get_ident():
+        if self._thread != get_ident():
             self.check()
         self._closed = True
         try:
@@ -338,7 +347,10 @@ class Session:
             self._forget()
             self._kill_born(0)
             self.caches.clear()
-            self._conn.close()
+            try:
+                self._conn.close()
+            except Exception:  # noqa: BLE001 - a lost connection is closed all the same
+                pass
             self._engine.dispose()
 
     # -- scopes ----------------------------------------------------------------
@@ -374,18 +386,15 @@ class Session:
             finally:
                 self._scopes.pop()
             return
-        if self._failed:
-            raise StoreError(
-                "an earlier write in this transaction block failed, so the block can only be left "
-                "(its changes are rolled back)"
-            )
         if not savepoint:
             self._scopes.append(kind)
             try:
                 yield self._conn
             except BaseException as exc:
                 if is_driver_error(exc):
-                    raise self._translated(exc, "the operation failed and changed nothing") from exc
+                    # The database may have aborted the transaction (PostgreSQL does): end the block.
+                    self._failed = True
+                    raise self._translated(exc, "the operation failed; the block can only be left") from exc
                 raise
             finally:
                 self._scopes.pop()
@@ -459,8 +468,6 @@ class Session:
         """
         self._alive(ref)
         if self._scopes:
-            if self._failed:
-                raise StoreError("an earlier write in this transaction block failed; leave the block")
             with self._guard("could not read"):
                 uow = self._uows.get(ref.id) or self._unlocked_uow(ref)
                 with uow.operation(keep=False):
@@ -550,7 +557,7 @@ class Session:
         values : dict
             The other parameters (the dict is reused: ``m`` is set in it).
         """
-        if self._thread != threading.get_ident() or self._closed or not ref.alive:
+        if self._thread != get_ident() or self._closed or self._failed or not ref.alive:
             self._alive(ref)
         try:
             if self._uows:

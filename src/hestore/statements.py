@@ -13,6 +13,7 @@ variants serve every call.
 
 from __future__ import annotations
 
+import operator
 from typing import Any, Callable, Iterable
 
 import sqlalchemy as sa
@@ -60,14 +61,22 @@ class Prepared:
         The dialect to compile for.
     """
 
-    __slots__ = ("sql", "_order", "_fixed")
+    __slots__ = ("sql", "_pick", "_fixed")
 
     def __init__(self, stmt: Any, dialect: sa.engine.Dialect) -> None:
         compiled = _compiler_for(dialect)(dialect, stmt)
         self.sql: str = compiled.string
         # Positional drivers (sqlite3's qmark) need the parameters in the
         # order they appear; named ones (psycopg's pyformat) take the dict.
-        self._order = tuple(compiled.positiontup) if dialect.positional else None
+        order = tuple(compiled.positiontup) if dialect.positional else None
+        if order is None:
+            self._pick = None
+        elif len(order) == 1:
+            name = order[0]
+            self._pick = lambda values: (values[name],)
+        else:
+            # A C-level getter: point reads run this once per query.
+            self._pick = operator.itemgetter(*order) if order else lambda values: ()
         # Literals the statement carries itself (a LIMIT, a CASE's constants).
         self._fixed = {k: v for k, v in compiled.params.items() if v is not None}
 
@@ -75,9 +84,9 @@ class Prepared:
         """Arrange named values the way the driver wants them."""
         if self._fixed:
             values = {**self._fixed, **values}
-        if self._order is None:
+        if self._pick is None:
             return values
-        return tuple(values[name] for name in self._order)
+        return self._pick(values)
 
     def rows(self, cursor: Any, values: dict[str, Any]) -> list[tuple]:
         """Execute with ``values`` and return all rows."""
