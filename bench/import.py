@@ -76,7 +76,8 @@ import sqlalchemy as sa  # noqa: E402
 import hestore  # noqa: E402
 from hestore import io as formats  # noqa: E402
 from hestore import schema  # noqa: E402
-from hestore.build import Ragged, build  # noqa: E402
+from hestore.arrays import Ragged  # noqa: E402
+from hestore.build import build  # noqa: E402
 from _common import (  # noqa: E402
     Figure,
     mesh_bench_parser,
@@ -275,17 +276,15 @@ def numpy_build(n_vertices: int, offsets: np.ndarray, indices: np.ndarray, sort:
 
 
 def table_rows(positions: np.ndarray, built) -> list[tuple[sa.Table, dict]]:
-    """Every table's columns, with the values hestore writes (-1 / NaN = NULL)."""
+    """Every table's columns, with the values hestore writes (-1 / NaN = NULL): ``built.arrays`` as they are."""
     a = built.arrays
-    n_v, n_h, n_e, n_p = len(positions), a.halfedges, a.edges, len(built.accepted)
-    ids = np.arange(n_h, dtype=np.int64)
     return [
-        (schema.vertices, {"id": np.arange(n_v), "halfedge": a.vertex_halfedge,
+        (schema.vertices, {"id": a.v_id, "halfedge": a.v_halfedge,
                            "x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}),
-        (schema.halfedges, {"id": ids, "origin": a.origin, "next": a.next, "prev": a.prev,
-                            "twin": ids ^ 1, "edge": ids >> 1, "polygon": a.polygon}),
-        (schema.edges, {"id": np.arange(n_e), "halfedge": 2 * np.arange(n_e)}),
-        (schema.polygons, {"id": np.arange(n_p), "halfedge": a.polygon_halfedge}),
+        (schema.halfedges, {"id": a.he_id, "origin": a.he_origin, "next": a.he_next, "prev": a.he_prev,
+                            "twin": a.he_twin, "edge": a.he_edge, "polygon": a.he_polygon}),
+        (schema.edges, {"id": a.e_id, "halfedge": a.e_halfedge}),
+        (schema.polygons, {"id": a.p_id, "halfedge": a.p_halfedge}),
     ]
 
 
@@ -534,13 +533,20 @@ def job_build_floor(spec: dict) -> dict:
     built = build(nv, Ragged(inp.offsets, inp.indices))
     hestore_build = time.perf_counter() - t0
     a = built.arrays
-    ref = (a.origin, a.next, a.prev, a.polygon, a.vertex_halfedge, a.polygon_halfedge)
+    ref = (a.he_origin, a.he_next, a.he_prev, a.he_polygon, a.v_halfedge, a.p_halfedge)
     names = ("origin", "next", "prev", "polygon", "vertex.halfedge", "polygon.halfedge")
     diffs = sorted({nm for out in outputs.values() for nm, x, y in zip(names, out, ref) if not np.array_equal(x, y)})
-    counts_equal = all(len(out[0]) == a.halfedges for out in outputs.values())
+    # The floor's implicit numbering: half-edge ids 0..H-1, twin h ^ 1, edge h >> 1 owning 2e, polygons 0..P-1.
+    ids = np.arange(len(a.he_id), dtype=np.int64)
+    implicit = {"halfedge.id": (a.he_id, ids), "twin": (a.he_twin, ids ^ 1), "edge": (a.he_edge, ids >> 1),
+                "edge.id": (a.e_id, np.arange(len(a.e_id))), "edge.halfedge": (a.e_halfedge, 2 * np.arange(len(a.e_id))),
+                "polygon.id": (a.p_id, np.arange(len(a.p_id))), "vertex.id": (a.v_id, np.arange(nv))}
+    diffs += sorted(nm for nm, (x, y) in implicit.items() if not np.array_equal(x, y))
+    counts_equal = all(len(out[0]) == len(a.he_id) for out in outputs.values())
     best = min(variants, key=variants.get)
     return {"variants": variants, "best": best, "seconds": variants[best], "hestore_build": hestore_build,
-            "halfedges": a.halfedges, "edges": a.edges, "polygons": len(built.accepted), "refused": len(built.refused),
+            "halfedges": len(a.he_id), "edges": len(a.e_id), "polygons": len(built.accepted),
+            "refused": len(built.refused),
             "counts_equal": counts_equal, "arrays_differ": diffs, "vertices": nv}
 
 
