@@ -80,19 +80,29 @@ def gc_paused() -> Iterator[None]:
         gc.enable()
 
 
-def time_each(fn: Callable[[Any], Any], items: Iterable) -> tuple[list[int], list]:
-    """``fn(item)`` for each item, each call timed alone: (nanoseconds per call, results), collector paused."""
+class Loop(NamedTuple):
+    """A loop timed call by call: nanoseconds per call, the calls' results, and the CPU seconds of the loop."""
+
+    samples: list[int]
+    results: list
+    cpu: float
+
+
+def time_each(fn: Callable[[Any], Any], items: Iterable) -> Loop:
+    """``fn(item)`` for each item, each call timed alone with ``perf_counter_ns``, the collector paused."""
     samples: list[int] = []
     results: list = []
     append, keep = samples.append, results.append
     with gc_paused():
+        c0 = cpu_seconds()
         for item in items:
             t0 = pc()
             r = fn(item)
             t1 = pc()
             append(t1 - t0)
             keep(r)
-    return samples, results
+        cpu = cpu_seconds() - c0
+    return Loop(samples, results, cpu)
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -351,7 +361,7 @@ class Parser(argparse.ArgumentParser):
                  children: bool = False, profile: str | None = None, seed: int | None = None) -> None:
         super().__init__(description=doc.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
         self.quick = quick
-        smoke = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in quick.items())
+        smoke = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in quick.items()) or "each benchmark's own"
         self.add_argument("--quick", action="store_true", help=f"a smoke run of small sizes: {smoke}")
         self.add_argument("--backends", default=",".join(BACKENDS), help="sqlite and/or postgresql (default both)")
         self.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),

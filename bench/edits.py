@@ -699,7 +699,7 @@ def measure_floor(engine: sa.Engine, n: int, warm: int) -> list[float]:
             for i in range(12):
                 conn.execute(upd, {"i": i, "v": k})
 
-    samples, _ = time_each(one, range(warm + n))
+    samples = time_each(one, range(warm + n)).samples
     md.drop_all(engine)
     return samples[warm:]
 

@@ -465,7 +465,7 @@ def job_to_networkx(spec: dict) -> dict:
         g = run.result
         rss = maxrss()
         # The cache: the second call, then CACHE_CALLS more (their median is the figure).
-        calls, again = time_each(lambda _: mesh.to_networkx(kind), range(1 + CACHE_CALLS))
+        calls, again, _ = time_each(lambda _: mesh.to_networkx(kind), range(1 + CACHE_CALLS))
         same_object = all(x is g for x in again)
         del again
         cached = [c / 1e9 for c in calls[1:]]
