@@ -33,15 +33,17 @@ read). The 1,000-edit figure includes those writes.
 
 from __future__ import annotations
 
-import argparse
-import gc
+import contextlib
+import math
 import os
 import random
 import shutil
 import sys
 import tempfile
 import time
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
+from typing import Iterable
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -49,28 +51,35 @@ import sqlalchemy as sa  # noqa: E402
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
-    DEFAULT_PG_URL,
-    MESH,
-    CountingCursor,
-    Model,
-    PostgresBackend,
-    SQLiteBackend,
-    build_grid,
-    fmt_ns,
+    Figure,
+    Parser,
+    TABLES,
+    Place,
+    gc_paused,
+    fmt_time,
     log,
+    maxrss,
     median,
-    peak_rss_mb,
+    open_backend,
+    pc,
     percentile,
-    pg_problem,
+    pg_connect,
+    print_figures,
+    print_machine,
+    print_markdown,
     print_table,
+    selected_backends,
+    time_each,
+    url_of,
+    verdict,
 )
 
-pc = time.perf_counter_ns
-
+MESH = "grid"
 US, MS = 1_000, 1_000_000
 TARGET_EDIT = 1 * MS  # one add_polygon / remove_edge inside a transaction, median
 TARGET_AMORTISED = 100 * US  # per edit of a 1,000-edit transaction, commit included
 TARGET_COMMIT = 2 * MS  # commit of a 1-polygon transaction, median (SPEC: SQLite WAL)
+QUICK = {"sizes": "1000", "repeat": 20, "warmup": 5, "txn_runs": 1, "edits": 100}
 
 
 class _Rollback(Exception):
@@ -78,12 +87,13 @@ class _Rollback(Exception):
 
 
 @dataclass
-class Figure:
+class Samples:
+    """One figure of one size: its timed calls (ns), target and floor (ns)."""
+
     name: str
-    samples: list[float]  # ns
+    samples: list[float]
     target: float | None = None
     floor: float | None = None
-    note: str = ""
     p90: bool = True  # whether p90 means anything (false for a handful of runs)
 
     @property
@@ -95,9 +105,395 @@ class Figure:
 class SizeResult:
     backend: str
     size: int
-    figures: list[Figure] = field(default_factory=list)
+    figures: list[Samples] = field(default_factory=list)
     sql: list[tuple[str, str]] = field(default_factory=list)  # (what, counts)
     notes: list[str] = field(default_factory=list)
+
+
+# -- the grid -----------------------------------------------------------------------
+
+
+def grid_shape(n_polygons: int) -> tuple[int, int]:
+    """Cells ``(nx, ny)`` of a grid with about ``n_polygons`` triangles (2 per cell).
+
+    Exact when n/2 has a factor pair with aspect ratio ≤ 2.5 (1 k = 20×25,
+    10 k = 50×100, 100 k = 200×250, 1 M = 625×800), else nearly square.
+    """
+    cells = max(1, n_polygons // 2)
+    best = None
+    for nx in range(int(math.isqrt(cells)), 0, -1):
+        if cells % nx == 0:
+            ny = cells // nx
+            if ny / nx <= 2.5:
+                best = (nx, ny)
+            break
+    if best is None:
+        nx = max(1, round(math.sqrt(cells)))
+        best = (nx, math.ceil(cells / nx))
+    return best
+
+
+@dataclass
+class BuildResult:
+    polygons: int
+    vertices: int
+    seconds: float
+    seconds_vertices: float
+    seconds_polygons: float
+    seconds_commit: float
+
+    @property
+    def rate(self) -> float:
+        return self.polygons / self.seconds
+
+
+def build_grid(store: hestore.Store, n_polygons: int) -> BuildResult:
+    """Build the triangulated grid through the public API, in one transaction.
+
+    Every grid vertex is added with its position, then the triangles cell by
+    cell, row by row, so each one attaches to triangles already there.
+    """
+    nx, ny = grid_shape(n_polygons)
+    mesh = store.create_mesh(MESH, allow_loops=False, allow_multi_edges=False)
+    t0 = time.perf_counter()
+    with store.transaction():
+        rows = [[mesh.add_vertex((float(i), float(j), 0.0)) for i in range(nx + 1)] for j in range(ny + 1)]
+        t1 = time.perf_counter()
+        add = mesh.add_polygon
+        for j in range(ny):
+            lo, hi = rows[j], rows[j + 1]
+            for i in range(nx):
+                a, b, c, d = lo[i], lo[i + 1], hi[i + 1], hi[i]
+                add([a, b, c])
+                add([a, c, d])
+        t2 = time.perf_counter()
+    t3 = time.perf_counter()
+    return BuildResult(2 * nx * ny, (nx + 1) * (ny + 1), t3 - t0, t1 - t0, t2 - t1, t3 - t2)
+
+
+
+# -- a plain-Python picture of the mesh -----------------------------------------------
+
+
+class IndexedSet:
+    """A set with O(1) add, discard and uniform random choice."""
+
+    __slots__ = ("_items", "_index")
+
+    def __init__(self, items: Iterable = ()) -> None:
+        self._items: list = []
+        self._index: dict = {}
+        for x in items:
+            self.add(x)
+
+    def add(self, x) -> None:
+        if x not in self._index:
+            self._index[x] = len(self._items)
+            self._items.append(x)
+
+    def discard(self, x) -> None:
+        i = self._index.pop(x, None)
+        if i is None:
+            return
+        last = self._items.pop()
+        if i < len(self._items):
+            self._items[i] = last
+            self._index[last] = i
+
+    def choice(self, rng: random.Random):
+        return self._items[rng.randrange(len(self._items))]
+
+    def __contains__(self, x) -> bool:
+        return x in self._index
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def copy(self) -> "IndexedSet":
+        new = IndexedSet()
+        new._items = list(self._items)
+        new._index = dict(self._index)
+        return new
+
+
+def _ekey(a: int, b: int) -> tuple[int, int]:
+    return (a, b) if a < b else (b, a)
+
+
+@dataclass
+class Model:
+    """Triangles, half-edges and boundary of a mesh without parallel edges or loops.
+
+    Half-edges are keyed ``(origin, target)``; ``he[(a, b)]`` is the polygon
+    on its left or None (free). Vertices not yet in the database (planned
+    additions) have negative ids. ``boundary`` holds the free half-edges whose
+    twin has a polygon (where a triangle can be attached); ``interior`` the
+    edges with polygons on both sides and a known id (which can be removed by
+    handle).
+    """
+
+    he: dict = field(default_factory=dict)
+    out: dict = field(default_factory=lambda: defaultdict(set))
+    eid: dict = field(default_factory=dict)
+    loops: dict = field(default_factory=dict)
+    pos: dict = field(default_factory=dict)
+    boundary: IndexedSet = field(default_factory=IndexedSet)
+    interior: IndexedSet = field(default_factory=IndexedSet)
+    n_vertices: int = 0
+    _new: int = 0
+
+    @classmethod
+    def load(cls, engine: sa.Engine, mesh_id: int) -> "Model":
+        m = cls()
+        with engine.connect() as conn:
+            rows = conn.execute(
+                sa.text(
+                    "SELECT h.id, h.origin, t.origin, h.next, h.edge, h.polygon FROM halfedges h "
+                    "JOIN halfedges t ON t.mesh_id = h.mesh_id AND t.id = h.twin WHERE h.mesh_id = :m"
+                ),
+                {"m": mesh_id},
+            ).all()
+            for vid, x, y, z in conn.execute(
+                sa.text("SELECT id, x, y, z FROM vertices WHERE mesh_id = :m"), {"m": mesh_id}
+            ):
+                m.pos[vid] = (x, y, z)
+        m.n_vertices = len(m.pos)
+        by_id = {}
+        for hid, a, b, nxt, e, p in rows:
+            if (a, b) in m.he:
+                raise ValueError(f"parallel half-edges {a}→{b}: the benchmark's model does not handle them")
+            m.he[(a, b)] = p
+            m.out[a].add(b)
+            m.eid[_ekey(a, b)] = e
+            by_id[hid] = (a, nxt, p)
+        seen = set()
+        for hid, (a, nxt, p) in by_id.items():
+            if p is None or p in seen:
+                continue
+            seen.add(p)
+            loop = [a]
+            h = nxt
+            while h != hid:
+                loop.append(by_id[h][0])
+                h = by_id[h][1]
+            m.loops[p] = tuple(loop)
+        for a, b in m.he:
+            if a < b:
+                m._refresh(a, b)
+        return m
+
+    def copy(self) -> "Model":
+        out = defaultdict(set)
+        for k, v in self.out.items():
+            out[k] = set(v)
+        return Model(
+            dict(self.he), out, dict(self.eid), dict(self.loops), dict(self.pos),
+            self.boundary.copy(), self.interior.copy(), self.n_vertices, self._new,
+        )
+
+    def _refresh(self, a: int, b: int) -> None:
+        he = self.he
+        pab, pba = he.get((a, b), 0), he.get((b, a), 0)  # 0: no such half-edge
+        for key, mine, other in (((a, b), pab, pba), ((b, a), pba, pab)):
+            if mine is None and other not in (None, 0):
+                self.boundary.add(key)
+            else:
+                self.boundary.discard(key)
+        k = _ekey(a, b)
+        if pab not in (None, 0) and pba not in (None, 0) and self.eid.get(k) is not None:
+            self.interior.add(k)
+        else:
+            self.interior.discard(k)
+
+    # -- queries
+
+    def is_boundary_vertex(self, v: int) -> bool:
+        return any(self.he[(v, t)] is None for t in self.out[v])
+
+    def side_polygons(self, u: int, v: int) -> list:
+        return [p for p in (self.he.get((u, v)), self.he.get((v, u))) if p is not None]
+
+    def remove_footprint(self, u: int, v: int) -> set[int]:
+        """Vertices a removal of edge u–v reads (its two polygons' corners)."""
+        vs = {u, v}
+        for p in self.side_polygons(u, v):
+            vs.update(self.loops[p])
+        return vs
+
+    def new_position(self, a: int, b: int) -> tuple[float, float, float]:
+        (xa, ya, _), (xb, yb, _) = self.pos[a], self.pos[b]
+        return ((xa + xb) / 2, (ya + yb) / 2, 0.5)
+
+    @property
+    def n_polygons(self) -> int:
+        return len(self.loops)
+
+    @property
+    def n_edges(self) -> int:
+        return len(self.eid)
+
+    # -- edits (what hestore is expected to do)
+
+    def new_vertex_id(self) -> int:
+        self._new -= 1
+        return self._new
+
+    def add_triangle(self, a: int, b: int, c: int, position, poly_key) -> None:
+        """Triangle [a, b, c] on the free half-edge a→b; c is a new vertex."""
+        assert self.he[(a, b)] is None and c not in self.out
+        he = self.he
+        he[(a, b)] = poly_key
+        he[(b, c)] = poly_key
+        he[(c, a)] = poly_key
+        he[(c, b)] = None
+        he[(a, c)] = None
+        self.out[a].add(c)
+        self.out[b].add(c)
+        self.out[c] = {a, b}
+        self.eid[_ekey(b, c)] = None
+        self.eid[_ekey(c, a)] = None
+        self.loops[poly_key] = (a, b, c)
+        self.pos[c] = position
+        self.n_vertices += 1
+        self._refresh(a, b)
+        self._refresh(b, c)
+        self._refresh(c, a)
+
+    def remove_edge(self, u: int, v: int) -> None:
+        """Edge u–v and the polygons on both of its sides."""
+        touched = []
+        for p in self.side_polygons(u, v):
+            loop = self.loops.pop(p)
+            for i, x in enumerate(loop):
+                y = loop[(i + 1) % len(loop)]
+                self.he[(x, y)] = None
+                touched.append((x, y))
+        del self.he[(u, v)], self.he[(v, u)]
+        self.out[u].discard(v)
+        self.out[v].discard(u)
+        del self.eid[_ekey(u, v)]
+        self.boundary.discard((u, v))
+        self.boundary.discard((v, u))
+        self.interior.discard(_ekey(u, v))
+        for x, y in touched:
+            if (x, y) in self.he:
+                self._refresh(x, y)
+
+    def signature(self, vertex_map: dict[int, int] | None = None) -> tuple:
+        """Comparable summary: polygon count, edge count, sorted boundary half-edges."""
+        f = (lambda x: vertex_map.get(x, x)) if vertex_map else (lambda x: x)
+        return (
+            self.n_polygons,
+            self.n_edges,
+            sorted((f(a), f(b)) for a, b in self.boundary),
+        )
+
+
+
+
+# -- where the meshes live: a pristine build per size, working copies restored from it --------------------
+
+
+def sa_engine(url: str) -> sa.Engine:
+    """A plain SQLAlchemy engine on ``url``, configured as hestore configures its own."""
+    eng = sa.create_engine(url)
+    if url.startswith("sqlite"):
+
+        @sa.event.listens_for(eng, "connect")
+        def _pragmas(dbapi_conn, _record):
+            cur = dbapi_conn.cursor()
+            cur.execute("PRAGMA journal_mode=WAL")
+            cur.execute("PRAGMA synchronous=NORMAL")
+            cur.close()
+
+    return eng
+
+
+class Copies:
+    """On one `Place`: the grid of each size built once (``b<n>``), and a working copy (``w<n>``) remade from it.
+
+    On PostgreSQL the copy is made with hestore's own migration plus ``INSERT …
+    SELECT`` of every table, then ``VACUUM (ANALYZE)`` — what autovacuum does
+    soon after a bulk load. Without it the first reads of each freshly written
+    page pay for setting hint bits, and the planner has no statistics.
+    """
+
+    def __init__(self, place: Place) -> None:
+        self.place = place
+        self.builds: dict[int, dict] = {}
+
+    def build_url(self, n: int) -> str:
+        self.builds[n] = self.place.fresh(f"b{n}")
+        return url_of(self.builds[n])
+
+    def restore(self, n: int) -> str:
+        src, dst = self.builds[n], self.place.fresh(f"w{n}")
+        if self.place.backend == "sqlite":
+            wal = src["path"] + "-wal"
+            if os.path.exists(wal) and os.path.getsize(wal) > 0:
+                raise RuntimeError(f"{src['path']} still has a WAL: close every store on it before copying")
+            shutil.copyfile(src["path"], dst["path"])
+            return url_of(dst)
+        hestore.open(url_of(dst)).close()  # creates hestore's tables at head, as a user's new database
+        a, b = src["schema"], dst["schema"]
+        with pg_connect(self.place.db_url, autocommit=True) as conn:
+            for table in TABLES:
+                conn.execute(f'INSERT INTO "{b}".{table} SELECT * FROM "{a}".{table}')
+            conn.execute(f"SELECT setval(pg_get_serial_sequence('\"{b}\".meshes', 'id'), "
+                         f'(SELECT coalesce(max(id), 0) + 1 FROM "{b}".meshes), false)')
+            for table in TABLES:
+                conn.execute(f'VACUUM (ANALYZE) "{b}".{table}')
+        return url_of(dst)
+
+    def size_bytes(self, n: int) -> int:
+        src = self.builds[n]
+        if self.place.backend == "sqlite":
+            return os.path.getsize(src["path"])
+        with pg_connect(self.place.db_url, autocommit=True) as conn:
+            return conn.execute(
+                "SELECT coalesce(sum(pg_total_relation_size(c.oid)), 0) FROM pg_class c "
+                "JOIN pg_namespace s ON s.oid = c.relnamespace WHERE s.nspname = %s AND c.relkind = 'r'",
+                (src["schema"],),
+            ).fetchone()[0]
+
+
+# -- counting the SQL hestore sends ----------------------------------------------------------------------
+
+
+class Statements:
+    """Counts the statements hestore sends on its driver cursor, by kind: install with
+    ``store.session.traced(counter)``.
+
+    The callback sees the SQL text only: an ``executemany`` counts as one
+    statement, and how many parameter sets (rows) it carried is not known.
+    """
+
+    KINDS = ("SELECT", "INSERT", "UPDATE", "DELETE", "TXN")
+
+    def __init__(self) -> None:
+        self.by_kind: Counter = Counter()
+
+    def __call__(self, sql: str) -> None:
+        word = sql.lstrip().split(None, 1)[0].upper()
+        if word in ("WITH", "(SELECT"):
+            word = "SELECT"
+        self.by_kind[word if word in self.KINDS else "TXN"] += 1  # TXN: BEGIN, COMMIT, SAVEPOINT, RELEASE, ...
+
+    def snapshot(self) -> Counter:
+        return Counter(self.by_kind)
+
+    @classmethod
+    def per(cls, counts: Counter, n: int) -> str:
+        """Statements per operation, by kind."""
+        parts = [f"{k} {counts[k] / n:.3g}" for k in cls.KINDS if counts[k]]
+        return f"{sum(counts.values()) / n:.3g} statements: " + ", ".join(parts)
+
+
+def traced(store: hestore.Store, counter: Statements | None):
+    return store.session.traced(counter) if counter else contextlib.nullcontext()
 
 
 # -- choosing edits ------------------------------------------------------------------
@@ -168,9 +564,15 @@ def plan_mixed(model: Model, mesh: hestore.Mesh, rng: random.Random, n: int) -> 
     def ref(x: int):
         return hestore.Vertex(mesh, x) if x >= 0 else slots[x]
 
+    def untouched_edge(k) -> bool:
+        return model.remove_footprint(*k).isdisjoint(touched)
+
+    def untouched_halfedge(k) -> bool:
+        return k[0] not in touched and k[1] not in touched
+
     for i in range(n):
         if i % 2 == 1 and len(model.interior):
-            (u, v), cold = _pick(model.interior, rng, lambda k: model.remove_footprint(*k).isdisjoint(touched))
+            (u, v), cold = _pick(model.interior, rng, untouched_edge)
             touched |= model.remove_footprint(u, v)
             plan.append((REMOVE, hestore.Edge(mesh, model.eid[(u, v)]), None, None))
             model.remove_edge(u, v)
@@ -178,7 +580,7 @@ def plan_mixed(model: Model, mesh: hestore.Mesh, rng: random.Random, n: int) -> 
         else:
             if i % 2 == 1:
                 stats["no_interior"] += 1
-            (a, b), cold = _pick(model.boundary, rng, lambda k: k[0] not in touched and k[1] not in touched)
+            (a, b), cold = _pick(model.boundary, rng, untouched_halfedge)
             c = model.new_vertex_id()
             pos = model.new_position(a, b)
             plan.append((ADD, ref(a), ref(b), pos))
@@ -195,64 +597,32 @@ def run_mixed(store: hestore.Store, mesh: hestore.Mesh, plan: list, *, commit: b
     """Run a planned mixed transaction; return (total ns, ns after last edit, new vertices)."""
     newv: list = []
     add_vertex, add_polygon, remove_edge = mesh.add_vertex, mesh.add_polygon, mesh.remove_edge
-    gc.collect()
-    gc.disable()
     try:
-        t0 = pc()
-        with store.transaction():
-            for kind, a, b, pos in plan:
-                if kind == ADD:
-                    if type(a) is int:
-                        a = newv[a]
-                    if type(b) is int:
-                        b = newv[b]
-                    c = add_vertex(pos)
-                    newv.append(c)
-                    add_polygon([a, b, c])
-                else:
-                    remove_edge(a)
-            t1 = pc()
-            if not commit:
-                mesh.counts()  # forces the flush, so that its statements can be counted
-                raise _Rollback
-        t2 = pc()
+        with gc_paused():
+            t0 = pc()
+            with store.transaction():
+                for kind, a, b, pos in plan:
+                    if kind == ADD:
+                        if type(a) is int:
+                            a = newv[a]
+                        if type(b) is int:
+                            b = newv[b]
+                        c = add_vertex(pos)
+                        newv.append(c)
+                        add_polygon([a, b, c])
+                    else:
+                        remove_edge(a)
+                t1 = pc()
+                if not commit:
+                    mesh.counts()  # forces the flush, so that its statements can be counted
+                    raise _Rollback
+            t2 = pc()
     except _Rollback:
         t2 = pc()
-    finally:
-        gc.enable()
     return t2 - t0, t2 - t1, newv
 
 
 # -- measurements ----------------------------------------------------------------------
-
-
-def _fmt_counts(calls: int, rows: int, by_kind: dict, per: int) -> str:
-    parts = []
-    for kind in ("SELECT", "INSERT", "UPDATE", "DELETE", "TXN"):
-        if kind in by_kind:
-            c, r = by_kind[kind]
-            parts.append(f"{kind} {c / per:.3g}" + (f" ({r / per:.3g} rows)" if r != c else ""))
-    return f"{calls / per:.3g} driver calls: " + ", ".join(parts)
-
-
-def _diff(after, before):
-    calls = after[0] - before[0]
-    rows = after[1] - before[1]
-    kinds = {}
-    for k, (c, r) in after[2].items():
-        c0, r0 = before[2].get(k, (0, 0))
-        if c - c0 or r - r0:
-            kinds[k] = (c - c0, r - r0)
-    return calls, rows, kinds
-
-
-def _accumulate(acc, d):
-    acc[0] += d[0]
-    acc[1] += d[1]
-    for k, (c, r) in d[2].items():
-        x = acc[2].setdefault(k, [0, 0])
-        x[0] += c
-        x[1] += r
 
 
 def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block: int, counter=None):
@@ -262,12 +632,12 @@ def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block:
     transaction rolled back at its end (so the mesh stays the base mesh). An
     untimed ``add_vertex`` opens each block's unit of work (the mesh lock), a
     per-transaction cost that belongs to the commit figure.
-    With ``counter`` (a CountingCursor installed as store._cur), also counts
-    statements per op and at a forced flush.
+    With ``counter`` (a `Statements`), also counts statements per op and at a
+    forced flush; returns ``(samples, add_vertex samples, (per op, at flush,
+    ops))``.
     """
     samples, vsamples = [], []
-    cnt_op = [0, 0, {}]
-    cnt_flush = [0, 0, {}]
+    cnt_op, cnt_flush = Counter(), Counter()
     n_ops = 0
     while len(samples) < warm + n:
         want = min(block, warm + n - len(samples))
@@ -278,10 +648,8 @@ def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block:
             plan = [(hestore.Vertex(mesh, a), hestore.Vertex(mesh, b), model.new_position(a, b)) for a, b in pairs]
         else:
             plan = [hestore.Edge(mesh, model.eid[(u, v)]) for u, v in pairs]
-        gc.collect()
-        gc.disable()
         try:
-            with store.transaction():
+            with gc_paused(), traced(store, counter), store.transaction():
                 mesh.add_vertex()
                 if kind == "add":
                     for a, b, pos in plan:
@@ -292,7 +660,7 @@ def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block:
                         mesh.add_polygon([a, b, c])
                         t2 = pc()
                         if counter:
-                            _accumulate(cnt_op, _diff(counter.snapshot(), before))
+                            cnt_op += counter.snapshot() - before
                         vsamples.append(t1 - t0)
                         samples.append(t2 - t1)
                 else:
@@ -303,18 +671,16 @@ def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block:
                         remove_edge(e)
                         t1 = pc()
                         if counter:
-                            _accumulate(cnt_op, _diff(counter.snapshot(), before))
+                            cnt_op += counter.snapshot() - before
                         samples.append(t1 - t0)
                 n_ops += len(plan)
                 if counter:
                     before = counter.snapshot()
                     mesh.counts()  # flushes the block's writes
-                    _accumulate(cnt_flush, _diff(counter.snapshot(), before))
+                    cnt_flush += counter.snapshot() - before
                 raise _Rollback
         except _Rollback:
             pass
-        finally:
-            gc.enable()
     return samples[warm:], vsamples[warm:], (cnt_op, cnt_flush, n_ops)
 
 
@@ -327,18 +693,13 @@ def measure_floor(engine: sa.Engine, n: int, warm: int) -> list[float]:
     with engine.begin() as conn:
         conn.execute(t.insert(), [{"id": i, "val": 0} for i in range(12)])
     upd = t.update().where(t.c.id == sa.bindparam("i")).values(val=sa.bindparam("v"))
-    samples = []
-    gc.collect()
-    gc.disable()
-    try:
-        for k in range(warm + n):
-            t0 = pc()
-            with engine.begin() as conn:
-                for i in range(12):
-                    conn.execute(upd, {"i": i, "v": k})
-            samples.append(pc() - t0)
-    finally:
-        gc.enable()
+
+    def one(k: int) -> None:
+        with engine.begin() as conn:
+            for i in range(12):
+                conn.execute(upd, {"i": i, "v": k})
+
+    samples = time_each(one, range(warm + n)).samples
     md.drop_all(engine)
     return samples[warm:]
 
@@ -346,10 +707,8 @@ def measure_floor(engine: sa.Engine, n: int, warm: int) -> list[float]:
 def measure_commits(store, mesh, model, rng, n: int, warm: int, counter=None):
     """One-polygon transactions end to end, and their part after the last edit."""
     total, tail = [], []
-    acc = [0, 0, {}]
-    gc.collect()
-    gc.disable()  # for the whole loop: a full collection per transaction would dominate the run
-    try:
+    acc = Counter()
+    with gc_paused(), traced(store, counter):  # for the whole loop: a collection per transaction would dominate
         for k in range(warm + n):
             a, b = model.boundary.choice(rng)
             A, B, pos = hestore.Vertex(mesh, a), hestore.Vertex(mesh, b), model.new_position(a, b)
@@ -361,111 +720,94 @@ def measure_commits(store, mesh, model, rng, n: int, warm: int, counter=None):
                 t1 = pc()
             t2 = pc()
             if counter:
-                _accumulate(acc, _diff(counter.snapshot(), before))
+                acc += counter.snapshot() - before
             model.add_triangle(a, b, c.id, pos, p.id)
             if k >= warm:
                 total.append(t2 - t0)
                 tail.append(t2 - t1)
-    finally:
-        gc.enable()
     return total, tail, acc
 
 
 # -- one size on one backend -------------------------------------------------------------
 
 
-def open_work(backend, size):
-    url = backend.restore(size)
-    engine = backend.engine(url)
+def open_work(copies: Copies, size: int):
+    url = copies.restore(size)
+    engine = sa_engine(url)
     store = hestore.open(url)
     mesh = store.mesh(MESH)
-    model = Model.load(engine, mesh._id)
-    return url, engine, store, mesh, model
+    model = Model.load(engine, mesh.id)
+    return engine, store, mesh, model
 
 
-def run_size(backend, size: int, args, rng: random.Random) -> SizeResult:
-    res = SizeResult(backend.name, size)
+def run_size(copies: Copies, size: int, args, rng: random.Random) -> SizeResult:
+    bname = copies.place.backend
+    res = SizeResult(bname, size)
     load0 = os.getloadavg()[0]
-    url, engine, store, mesh, model = open_work(backend, size)
+    engine, store, mesh, model = open_work(copies, size)
     counts = mesh.counts()
     assert counts.polygons == model.n_polygons and counts.edges == model.n_edges, (counts, model.n_polygons)
-    log(f"{backend.name} {size}: {counts}; boundary half-edges {len(model.boundary)}, interior edges {len(model.interior)}")
+    log(f"{bname} {size}: {counts}; boundary half-edges {len(model.boundary)}, interior edges {len(model.interior)}")
 
     # add_polygon / remove_edge inside a transaction
     for kind in ("add", "remove"):
         s, vs, _ = measure_single(store, mesh, model, rng, kind, args.repeat, args.warmup, args.block)
         if kind == "add":
-            res.figures.append(Figure("add_polygon in txn (triangle on boundary)", s, TARGET_EDIT))
-            res.figures.append(Figure("  add_vertex in txn (its new corner)", vs))
+            res.figures.append(Samples("add_polygon in txn (triangle on boundary)", s, TARGET_EDIT))
+            res.figures.append(Samples("  add_vertex in txn (its new corner)", vs))
         else:
-            res.figures.append(Figure("remove_edge in txn (interior, 2 triangles)", s, TARGET_EDIT))
+            res.figures.append(Samples("remove_edge in txn (interior, 2 triangles)", s, TARGET_EDIT))
         if args.count:
-            orig = store._cur
-            store._cur = counter = CountingCursor(orig)
-            try:
-                _, _, (op, fl, n_ops) = measure_single(store, mesh, model, rng, kind, args.block, 0, args.block, counter)
-            finally:
-                store._cur = orig
+            counter = Statements()
+            _, _, (op, fl, n_ops) = measure_single(store, mesh, model, rng, kind, args.block, 0, args.block, counter)
             label = "add_polygon" if kind == "add" else "remove_edge"
-            res.sql.append((f"{label}: during the call, per op", _fmt_counts(op[0], op[1], op[2], n_ops)))
-            res.sql.append((f"{label}: at flush, per op ({n_ops} ops)", _fmt_counts(fl[0], fl[1], fl[2], n_ops)))
+            res.sql.append((f"{label}: during the call, per op", Statements.per(op, n_ops)))
+            res.sql.append((f"{label}: at flush, per op ({n_ops} ops)", Statements.per(fl, n_ops)))
     assert mesh.counts() == counts, "a rolled-back block changed the mesh"
 
     # floor: a 12-row update transaction through SQLAlchemy, same database
     floor = measure_floor(engine, args.repeat, args.warmup)
     floor_med = median(floor)
-    res.figures.append(Figure("floor: 12-row UPDATE txn via SQLAlchemy", floor))
+    res.figures.append(Samples("floor: 12-row UPDATE txn via SQLAlchemy", floor))
 
     # one-polygon transactions (these commit: the model follows)
     total, tail, _ = measure_commits(store, mesh, model, rng, args.repeat, args.warmup)
-    res.figures.append(Figure("1-polygon txn, end to end", total, TARGET_COMMIT, floor_med))
-    res.figures.append(Figure("  of which flush + COMMIT", tail, TARGET_COMMIT, floor_med))
+    res.figures.append(Samples("1-polygon txn, end to end", total, TARGET_COMMIT, floor_med))
+    res.figures.append(Samples("  of which flush + COMMIT", tail, TARGET_COMMIT, floor_med))
     if args.count:
-        orig = store._cur
-        store._cur = counter = CountingCursor(orig)
-        try:
-            _, _, acc = measure_commits(store, mesh, model, rng, 20, 0, counter)
-        finally:
-            store._cur = orig
-        res.sql.append(("1-polygon txn, per txn", _fmt_counts(acc[0], acc[1], acc[2], 20)))
+        _, _, acc = measure_commits(store, mesh, model, rng, 20, 0, Statements())
+        res.sql.append(("1-polygon txn, per txn", Statements.per(acc, 20)))
     store.close()
     engine.dispose()
 
-    # 1,000-edit transactions, each on a fresh copy of the base mesh
-    per_edit, commit_part, warm_share = [], [], []
+    # many-edit transactions, each on a fresh copy of the base mesh
+    per_edit, commit_part = [], []
     for run in range(args.txn_runs):
-        url, engine, store, mesh, model = open_work(backend, size)
+        engine, store, mesh, model = open_work(copies, size)
         # warm-up (and statement count): the same kind of transaction, rolled back
         plan, _, _ = plan_mixed(model.copy(), mesh, rng, args.edits)
-        orig = store._cur
-        counter = CountingCursor(orig) if (args.count and run == 0) else None
-        if counter:
-            store._cur = counter
-        try:
+        counter = Statements() if (args.count and run == 0) else None
+        with traced(store, counter):
             run_mixed(store, mesh, plan, commit=False)
-        finally:
-            store._cur = orig
         if counter:
-            res.sql.append(
-                (f"{args.edits}-edit txn, per edit (incl. flush)", _fmt_counts(counter.calls, counter.rows, counter.snapshot()[2], args.edits))
-            )
+            res.sql.append((f"{args.edits}-edit txn, per edit (incl. flush)",
+                            Statements.per(counter.by_kind, args.edits)))
         plan, slots, stats = plan_mixed(model, mesh, rng, args.edits)
         total, tail, newv = run_mixed(store, mesh, plan, commit=True)
         per_edit.append(total / args.edits)
         commit_part.append(tail)
-        warm_share.append(stats["warm"] / args.edits)
         # the database must now hold what the plan said
         vmap = {neg: newv[slot].id for neg, slot in slots.items()}
         expected = model.signature(vmap)
-        actual = Model.load(engine, mesh._id).signature()
+        actual = Model.load(engine, mesh.id).signature()
         if expected != actual:
-            msg = (f"{backend.name} {size}: after the {args.edits}-edit transaction the database differs from the plan: "
+            msg = (f"{bname} {size}: after the {args.edits}-edit transaction the database differs from the plan: "
                    f"polygons {actual[0]} vs {expected[0]}, edges {actual[1]} vs {expected[1]}, "
                    f"boundary half-edges {len(actual[2])} vs {len(expected[2])}")
             res.notes.append("MISMATCH: " + msg)
             log(msg)
         res.notes.append(
-            f"1000-edit run {run + 1}: {fmt_ns(total)} total, {fmt_ns(tail)} flush+COMMIT, "
+            f"{args.edits}-edit run {run + 1}: {fmt_time(total / 1e9)} total, {fmt_time(tail / 1e9)} flush+COMMIT, "
             f"{stats['adds']} adds / {stats['removes']} removes"
             + (f" ({stats['no_interior']} removes became adds: no interior edge left)" if stats["no_interior"] else "")
             + f", {100 * stats['warm'] / args.edits:.0f}% of edits on vertices an earlier edit had touched"
@@ -473,15 +815,9 @@ def run_size(backend, size: int, args, rng: random.Random) -> SizeResult:
         if run < args.txn_runs - 1:
             store.close()
             engine.dispose()
-    res.figures.append(
-        Figure(
-            f"{args.edits}-edit txn, per edit incl. COMMIT",
-            per_edit,
-            TARGET_AMORTISED,
-            p90=False,
-            note=f"median of {len(per_edit)} run(s); commit part {fmt_ns(median(commit_part))}",
-        )
-    )
+    res.figures.append(Samples(f"{args.edits}-edit txn, per edit incl. COMMIT", per_edit, TARGET_AMORTISED, p90=False))
+    res.notes.append(f"{args.edits}-edit txn: the figure is the median of {len(per_edit)} run(s); "
+                     f"their flush+COMMIT part {fmt_time(median(commit_part) / 1e9)} (median)")
 
     res.notes.append(f"load average (1 min) {load0:.1f} at the start of the measurements, "
                      f"{os.getloadavg()[0]:.1f} at the end ({os.cpu_count()} CPUs)")
@@ -491,7 +827,8 @@ def run_size(backend, size: int, args, rng: random.Random) -> SizeResult:
         dt = time.perf_counter() - t0
         res.notes.append(f"mesh.check() after the runs: {len(violations)} violation(s), {dt:.2f} s")
         if violations:
-            log(f"{backend.name} {size}: check() found {len(violations)} violations, e.g. {violations[:3]}")
+            res.notes.append(f"MISMATCH: check() found {len(violations)} violations, e.g. {violations[:3]}")
+            log(f"{bname} {size}: check() found {len(violations)} violations, e.g. {violations[:3]}")
     store.close()
     engine.dispose()
     return res
@@ -501,44 +838,37 @@ def run_size(backend, size: int, args, rng: random.Random) -> SizeResult:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = Parser(__doc__, quick=QUICK, seed=20240601,
+                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)")
     ap.add_argument("--sizes", default="1000,10000,100000", help="mesh sizes in polygons, comma-separated")
-    ap.add_argument("--backends", default="sqlite,postgresql", help="sqlite and/or postgresql")
     ap.add_argument("--repeat", type=int, default=200, help="timed calls per single-operation figure (default 200)")
     ap.add_argument("--warmup", type=int, default=20, help="untimed calls before each figure (default 20)")
-    ap.add_argument("--txn-runs", type=int, default=3, help="1,000-edit transactions per size (default 3)")
+    ap.add_argument("--txn-runs", type=int, default=3, help="many-edit transactions per size (default 3)")
     ap.add_argument("--edits", type=int, default=1000, help="edits in the amortised transaction (default 1000)")
     ap.add_argument("--block", type=int, default=50, help="edits per rolled-back measuring block (default 50)")
-    ap.add_argument("--seed", type=int, default=20240601)
-    ap.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
-                    help="PostgreSQL server to use; a database is created there and dropped at the end")
     ap.add_argument("--max-build-seconds", type=float, default=180,
                     help="skip a size whose build is expected to take longer (default 180)")
-    ap.add_argument("--workdir", help="where SQLite files go (default: a temporary folder, removed at the end)")
     ap.add_argument("--no-count", dest="count", action="store_false", help="skip the SQL statement counts")
     ap.add_argument("--no-check", dest="check", action="store_false", help="skip mesh.check() at the end")
     args = ap.parse_args(argv)
 
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
-    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
+    backends = selected_backends(ap, args)
     rng = random.Random(args.seed)
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_")
+    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_edits_")
     os.makedirs(workdir, exist_ok=True)
+    load_start = os.getloadavg()
+    t_start = time.perf_counter()
 
     builds, results, skipped = [], [], []
+    pg_version = None
     try:
         for bname in backends:
-            if bname == "sqlite":
-                backend = SQLiteBackend(workdir)
-            elif bname == "postgresql":
-                problem = pg_problem(args.pg_url)
-                if problem:
-                    skipped.append(f"postgresql: not reachable at {args.pg_url}: {problem}")
+            with open_backend(bname, workdir, args.pg_url, skipped) as place:
+                if place is None:
                     continue
-                backend = PostgresBackend(args.pg_url)
-            else:
-                ap.error(f"unknown backend {bname!r}")
-            try:
+                pg_version = place.version or pg_version
+                copies = Copies(place)
                 rate = None
                 for size in sizes:
                     if rate and size / rate > args.max_build_seconds:
@@ -548,31 +878,41 @@ def main(argv=None) -> int:
                         )
                         continue
                     log(f"{bname} {size}: building")
-                    store = hestore.open(backend.build_url(size))
+                    store = hestore.open(copies.build_url(size))
                     b = build_grid(store, size)
                     store.close()
                     rate = b.rate
-                    builds.append((bname, b, backend.size_bytes(size), peak_rss_mb()))
+                    builds.append((bname, b, copies.size_bytes(size), maxrss()))
                     log(f"{bname} {size}: built {b.polygons} polygons in {b.seconds:.2f} s ({b.rate:.0f}/s)")
-                    results.append(run_size(backend, size, args, rng))
-                    log(f"{bname} {size}: done; peak RSS {peak_rss_mb():.0f} MiB")
-            finally:
-                backend.cleanup()
+                    results.append(run_size(copies, size, args, rng))
+                    log(f"{bname} {size}: done; peak RSS {maxrss() / 2**20:.0f} MiB")
     finally:
         if not args.workdir:
             shutil.rmtree(workdir, ignore_errors=True)
 
     report(args, builds, results, skipped)
+    print_machine(pg_version, load_start, time.perf_counter() - t_start)
     return 1 if any("MISMATCH" in n for r in results for n in r.notes) else 0
 
 
-def report(args, builds, results, skipped) -> None:
-    import platform
+def figures_of(results: list[SizeResult]) -> list[Figure]:
+    out = []
+    for r in results:
+        for f in r.figures:
+            out.append(Figure(
+                f.name, r.backend, f.median / 1e9,
+                floor=f.floor / 1e9 if f.floor else None,
+                target=("≤ " + fmt_time(f.target / 1e9)) if f.target else "—",
+                verdict=verdict(None if f.target is None else f.median <= f.target),
+                mesh=f"{r.size:,}", n=len(f.samples), p90=percentile(f.samples, 0.9) / 1e9 if f.p90 else None,
+            ))
+    return out
 
+
+def report(args, builds, results, skipped) -> None:
     print()
-    print(f"hestore {hestore.__version__} edit benchmark — Python {platform.python_version()}, "
-          f"SQLAlchemy {sa.__version__}, {os.cpu_count()} CPUs, seed {args.seed}, "
-          f"{args.repeat} timed calls per figure, {args.txn_runs} × {args.edits}-edit transactions per size")
+    print(f"hestore edit benchmark — seed {args.seed}, {args.repeat} timed calls per figure, "
+          f"{args.txn_runs} × {args.edits}-edit transactions per size")
     print()
     print("Build: triangulated grid through the public API, one transaction "
           "(add_vertex ×V, add_polygon ×F, commit). PostGIS Topology: 45–240 triangles/s.")
@@ -581,30 +921,16 @@ def report(args, builds, results, skipped) -> None:
         rows.append([
             bname, f"{b.polygons:,}", f"{b.vertices:,}", f"{b.seconds:.2f} s",
             f"{b.seconds_vertices:.2f} / {b.seconds_polygons:.2f} / {b.seconds_commit:.2f} s",
-            f"{b.rate:,.0f}", f"{nbytes / 2**20:.1f} MiB", f"{rss:.0f} MiB",
+            f"{b.rate:,.0f}", f"{nbytes / 2**20:.1f} MiB", f"{rss / 2**20:.0f} MiB",
         ])
     print_table(["backend", "polygons", "vertices", "build", "vertices / polygons / commit", "polygons/s", "db size",
                  "peak RSS so far"], rows, "llrrrrrr")
+    figures = figures_of(results)
     print()
-    print("Edits (medians and p90 over the timed calls; target = SPEC §9; floor measured in the same run):")
-    rows = []
-    for r in results:
-        for f in r.figures:
-            verdict = "—"
-            if f.target is not None:
-                verdict = "ok" if f.median <= f.target else "over"
-            rows.append([
-                r.backend, f"{r.size:,}", f.name, str(len(f.samples)), fmt_ns(f.median),
-                fmt_ns(percentile(f.samples, 0.9)) if f.p90 else "—",
-                ("≤ " + fmt_ns(f.target)) if f.target else "—",
-                fmt_ns(f.floor) if f.floor else "—",
-                f"{f.median / f.floor:.1f}×" if f.floor else "—",
-                verdict,
-            ])
-        rows.append([""] * 10)
-    if rows:
-        print_table(["backend", "mesh", "figure", "n", "median", "p90", "target", "floor", "÷floor", "verdict"],
-                    rows[:-1], "lrlrrrrrrl")
+    print("Edits (time: the median of the n timed calls, p90 beside it; mesh: polygons; target = SPEC §9; "
+          "floor measured in the same run):")
+    if figures:
+        print_figures(figures)
     if results:
         print()
         print("Growth with the mesh (median at each size; ratio = largest size / smallest size):")
@@ -617,7 +943,7 @@ def report(args, builds, results, skipped) -> None:
                 vals = [by_size[s].figures[i].median if s in by_size else None for s in sizes]
                 present = [v for v in vals if v is not None]
                 ratio = f"{present[-1] / present[0]:.2f}" if len(present) > 1 else "—"
-                rows.append([bname, name.strip()] + [fmt_ns(v) for v in vals] + [ratio])
+                rows.append([bname, name.strip()] + [fmt_time(None if v is None else v / 1e9) for v in vals] + [ratio])
         print_table(["backend", "figure"] + [f"{s:,}" for s in sizes] + ["ratio"], rows, "ll" + "r" * (len(sizes) + 1))
     notes = [(r.backend, r.size, n) for r in results for n in r.notes]
     if notes:
@@ -628,16 +954,19 @@ def report(args, builds, results, skipped) -> None:
     sql = [(r.backend, r.size, w, c) for r in results for w, c in r.sql]
     if sql:
         print()
-        print("SQL sent on hestore's driver cursor, per operation (counted in separate, untimed passes; an")
-        print("executemany is one call, its parameter sets are 'rows'; TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE/ROLLBACK):")
+        print("SQL statements hestore sent on its driver cursor, per operation (counted through")
+        print("store.session.traced in separate, untimed passes; an executemany counts once, its rows are not seen;")
+        print("TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE/ROLLBACK):")
         print_table(["backend", "mesh", "what", "statements"], [[b, f"{s:,}", w, c] for b, s, w, c in sql], "lrll")
     for s in skipped:
         print(f"SKIPPED {s}")
     print()
     print("In-transaction timings exclude writing: hestore writes a transaction's changes at commit (or before a")
-    print("read); the 1,000-edit figure includes them. The commit target (≤ 2 ms) is SPEC's for SQLite WAL; it is")
+    print("read); the many-edit figure includes them. The commit target (≤ 2 ms) is SPEC's for SQLite WAL; it is")
     print("applied to PostgreSQL as well. The floor is 12 single-row UPDATEs in engine.begin() on the same database.")
-    print(f"Peak RSS: {peak_rss_mb():.0f} MiB")
+    print(f"Peak RSS of the whole run: {maxrss() / 2**20:.0f} MiB")
+    if figures:
+        print_markdown(figures)
 
 
 if __name__ == "__main__":

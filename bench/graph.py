@@ -59,13 +59,9 @@ with networkx's component count; check() is empty.
 from __future__ import annotations
 
 import contextlib
-import cProfile
 import gc
 import hashlib
-import io
 import os
-import platform
-import pstats
 import shutil
 import sys
 import tempfile
@@ -73,8 +69,7 @@ import time
 from dataclasses import dataclass
 from itertools import islice
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import networkx as nx  # noqa: E402
 import numpy as np  # noqa: E402
@@ -82,31 +77,34 @@ import numpy as np  # noqa: E402
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
     Figure,
-    mesh_bench_parser,
-    selected_meshes,
-    FILES,
-    PgRun,
+    Parser,
     Runner,
     child_main,
-    cpu_seconds,
     fmt_mib,
-    fmt_s,
-    grid_arrays,
+    fmt_time,
+    gc_paused,
+    import_mesh,
     maxrss,
     mesh_label,
-    pg_connect,
+    open_backend,
     pg_copy_columns,
-    pg_drop_schema,
-    pg_fresh_schema,
-    pg_problem,
+    plain_connection,
+    plain_mesh_id,
+    print_figures,
     print_machine,
+    print_markdown,
     print_table,
-    remove_sqlite,
+    selected_backends,
+    selected_meshes,
     settle,
-    sqlite_connect,
-    sqlite_url,
+    time_each,
+    timed,
+    url_of,
+    vacuum_analyze,
+    verdict,
 )
 
+QUICK = {"n": 100, "only": "grid", "profile": "off"}
 TARGET_RATIO = 1.3  # to_networkx("multigraph") ÷ floor
 TARGET_SECONDS = 10.0  # stats(), check() (and, applied here, boundary_loops(), components())
 TARGET_CACHE = 0.010  # a second to_networkx(): "about 0"
@@ -241,7 +239,10 @@ def add_nodes(g, a: Arrays, pos: bool) -> None:
 
 
 def floor_multigraph(a: Arrays, variant: str, form: str):
-    """The multigraph floor's build: ``variant`` "edges" / "nodes+pos" / "same graph"; ``form`` "triples" / "4-tuples"."""
+    """The multigraph floor's build.
+
+    ``variant``: "edges" / "nodes+pos" / "same graph"; ``form``: "triples" / "4-tuples".
+    """
     g = nx.MultiGraph()
     if variant != "edges":
         add_nodes(g, a, NODE_POS["multigraph"])
@@ -278,43 +279,17 @@ def floor_graph(a: Arrays, variant: str):
 
 
 # ==========================================================================
-# Databases and the untimed setup
-
-
-def _store_url(spec: dict) -> str:
-    return sqlite_url(spec["path"]) if spec["backend"] == "sqlite" else spec["url"]
-
-
-def _plain(spec: dict):
-    """A plain-driver connection and cursor on the run's database, in one read snapshot."""
-    if spec["backend"] == "sqlite":
-        con = sqlite_connect(spec["path"])
-        cur = con.cursor()
-        return con, cur, "BEGIN"
-    con = pg_connect(spec["url"], autocommit=True)
-    return con, con.cursor(), "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
-
-
-def _mesh_id(cur, name: str, backend: str) -> int:
-    cur.execute(f"SELECT id FROM meshes WHERE name = {'?' if backend == 'sqlite' else '%s'}", (name,))
-    return cur.fetchone()[0]
+# The untimed setup
 
 
 def job_setup(spec: dict) -> dict:
     """Store the mesh (untimed setup); on PostgreSQL then VACUUM (ANALYZE), as autovacuum soon would."""
     t0 = time.perf_counter()
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
-        if spec["mesh"] == "grid":
-            positions, faces = grid_arrays(spec["n"])
-            report = store.import_arrays("grid", positions, faces)
-        else:
-            report = store.import_file(os.path.join(spec["dir"], FILES[spec["mesh"]]), spec["mesh"])
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
+        report = import_mesh(store, spec["mesh"], spec["n"], spec["dir"])
         counts = report.mesh.counts()
     seconds = time.perf_counter() - t0
-    if spec["backend"] == "postgresql":
-        with pg_connect(spec["url"], autocommit=True) as conn:
-            for table in ("meshes", "vertices", "halfedges", "edges", "polygons"):
-                conn.execute(f"VACUUM (ANALYZE) {table}")
+    vacuum_analyze(spec)
     return {"seconds": seconds, "skipped": len(report.skipped),
             "counts": [counts.vertices, counts.halfedges, counts.edges, counts.polygons]}
 
@@ -325,8 +300,9 @@ def job_setup(spec: dict) -> dict:
 
 def job_fetch(spec: dict) -> dict:
     """Every fetch variant of the three queries, each once, in its own read snapshot; saves the arrays."""
-    con, cur, begin = _plain(spec)
-    mesh_id = _mesh_id(cur, spec["mesh"], spec["backend"])
+    plain = plain_connection(spec)
+    con, cur, begin = plain.con, plain.cur, plain.begin
+    mesh_id = plain_mesh_id(plain, spec["mesh"])
     times: dict = {}
     out: dict = {}
     for qname, (cols, rest, dtype) in QUERIES.items():
@@ -357,15 +333,9 @@ def _timed_build(spec: dict, fn, collector: bool) -> tuple[float, float, object]
     """Time ``fn()`` with the cyclic garbage collector on or paused (hestore pauses it while it builds)."""
     gc.collect()
     settle(spec)
-    c0 = cpu_seconds()
-    t0 = time.perf_counter()
-    if not collector:
-        gc.disable()
-    try:
-        g = fn()
-    finally:
-        gc.enable()
-    return time.perf_counter() - t0, cpu_seconds() - c0, g
+    with contextlib.nullcontext() if collector else gc_paused():
+        run = timed(fn)
+    return run.seconds, run.cpu, run.result
 
 
 def job_build(spec: dict) -> dict:
@@ -385,7 +355,7 @@ def job_build(spec: dict) -> dict:
             forms = ("attribute dicts",)
         for form in forms:
             g = None
-            t, c, g = _timed_build(spec, lambda: floor_multigraph(a, variant, form), False)
+            t, c, g = _timed_build(spec, lambda form=form: floor_multigraph(a, variant, form), False)
             runs[f"{form}, collector paused"] = (t, c)
         if variant == FLOOR_OF[kind]:
             g = None
@@ -410,34 +380,6 @@ def job_build(spec: dict) -> dict:
 
 # ==========================================================================
 # Child jobs: hestore
-
-
-def _profiled(spec: dict, fn):
-    """Run ``fn()`` timed (and under cProfile when ``spec["profile"]``): (result, seconds, cpu, profile text)."""
-    profiler = cProfile.Profile() if spec.get("profile") else None
-    c0 = cpu_seconds()
-    t0 = time.perf_counter()
-    if profiler:
-        profiler.enable()
-    result = fn()
-    if profiler:
-        profiler.disable()
-    seconds = time.perf_counter() - t0
-    cpu = cpu_seconds() - c0
-    text = dominant = None
-    if profiler:
-        raw = pstats.Stats(profiler)
-        mine = sorted(((row[3], f"{func} ({os.path.basename(file)}:{line})") for (file, line, func), row in raw.stats.items()
-                       if f"{os.sep}hestore{os.sep}" in file), reverse=True)
-        buf = io.StringIO()
-        stats = pstats.Stats(profiler, stream=buf).strip_dirs()
-        stats.sort_stats("tottime").print_stats(spec.get("profile_lines", 20))
-        stats.sort_stats("cumulative").print_stats(spec.get("profile_lines", 20))
-        text = buf.getvalue()
-        (file, line, func), row = max(stats.stats.items(), key=lambda kv: kv[1][2])
-        dominant = (f"{func} ({file}:{line}): {row[2]:.2f} s of its own time, {row[3]:.2f} s with callees; "
-                    "hestore's functions by time with callees: " + ", ".join(f"{name} {t:.2f} s" for t, name in mine[:5]))
-    return result, seconds, cpu, text, dominant
 
 
 def verify_graph(kind: str, g, a: Arrays) -> list[str]:
@@ -515,23 +457,22 @@ def verify_graph(kind: str, g, a: Arrays) -> list[str]:
 
 def job_to_networkx(spec: dict) -> dict:
     kind = spec["kind"]
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
         mesh = store.mesh(spec["mesh"])
         settle(spec)
         rss0 = maxrss()
-        g, seconds, cpu, text, dominant = _profiled(spec, lambda: mesh.to_networkx(kind))
+        run = timed(lambda: mesh.to_networkx(kind), profile=spec.get("profile", False))
+        g = run.result
         rss = maxrss()
         # The cache: the second call, then CACHE_CALLS more (their median is the figure).
-        calls, same_object = [], True
-        for _ in range(1 + CACHE_CALLS):
-            t0 = time.perf_counter()
-            again = mesh.to_networkx(kind)
-            calls.append(time.perf_counter() - t0)
-            same_object &= again is g
+        calls, again, _ = time_each(lambda _: mesh.to_networkx(kind), range(1 + CACHE_CALLS))
+        same_object = all(x is g for x in again)
         del again
-        out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "second_call": calls[0],
-               "cached": float(np.median(calls[1:])), "cached_max": max(calls[1:]), "same_object": same_object,
-               "profile": text, "dominant": dominant, "nodes": g.number_of_nodes(), "graph_edges": g.number_of_edges()}
+        cached = [c / 1e9 for c in calls[1:]]
+        out = {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "second_call": calls[0] / 1e9,
+               "cached": float(np.median(cached)), "cached_max": max(cached), "same_object": same_object,
+               "profile": run.profile, "dominant": run.dominant, "nodes": g.number_of_nodes(),
+               "graph_edges": g.number_of_edges()}
     if not spec.get("profile"):
         out["mismatch"] = verify_graph(kind, g, Arrays.load(spec["arrays"]))
     KEEP.extend((store, g))  # freed by the process's exit, not timed, not waited for
@@ -546,20 +487,22 @@ def _summary_result(what: str, result) -> dict:
     if what == "boundary_loops":
         return {"count": len(result), "halfedges": sum(len(x) for x in result)}
     if what == "components":
-        return {"count": len(result), "vertices": sum(len(x) for x in result), "largest": max(map(len, result), default=0)}
+        return {"count": len(result), "vertices": sum(len(x) for x in result),
+                "largest": max(map(len, result), default=0)}
     return {"violations": len(result), "examples": [str(v) for v in result[:5]]}
 
 
 def job_summary(spec: dict) -> dict:
     what = spec["what"]
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
         mesh = store.mesh(spec["mesh"])
         settle(spec)
         rss0 = maxrss()
-        result, seconds, cpu, text, dominant = _profiled(spec, getattr(mesh, what))
+        run = timed(getattr(mesh, what), profile=spec.get("profile", False))
         rss = maxrss()
-        out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "profile": text, "dominant": dominant}
-        out.update(_summary_result(what, result))
+        out = {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "profile": run.profile,
+               "dominant": run.dominant}
+        out.update(_summary_result(what, run.result))
     return out
 
 
@@ -597,13 +540,15 @@ def floor_of(kind: str, variant: str, fetch: dict | None, build: dict | None) ->
 
 
 def main(argv=None) -> int:
-    ap = mesh_bench_parser(__doc__, workdir_help="where SQLite files and arrays go (default: a temporary folder, removed at the end)",
-                           profile_help="rerun a figure under cProfile when it is over its target (default), always, or never")
+    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=True, children=True,
+                workdir_help="where SQLite files and arrays go (default: a temporary folder, removed at the end)",
+                profile="rerun a figure under cProfile when it is over its target (default), always, or never")
     args = ap.parse_args(argv)
     if args.child:
         return child_main(JOBS, args.child)
 
-    only, backends, skipped = selected_meshes(ap, args, FETCHES)
+    backends = selected_backends(ap, args)
+    only, skipped = selected_meshes(ap, args)
 
     own_workdir = args.workdir is None
     workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_graph_")
@@ -622,23 +567,12 @@ def main(argv=None) -> int:
     pg_version = None
     try:
         for bname in backends:
-            pg = None
-            if bname == "postgresql":
-                problem = pg_problem(args.pg_url)
-                if problem:
-                    skipped.append(f"postgresql: not reachable at {args.pg_url}: {problem}")
+            with open_backend(bname, workdir, args.pg_url, skipped) as place:
+                if place is None:
                     continue
-                pg = PgRun(args.pg_url)
-                pg_version = pg.version()
-            try:
+                pg_version = place.version or pg_version
                 for m in only:
-                    spec = dict(base, backend=bname, mesh=m)
-                    if pg:
-                        spec["db_url"] = pg.url
-                        spec["url"] = pg_fresh_schema(pg.url, f"graph_{m}")
-                    else:
-                        spec["path"] = os.path.join(workdir, f"graph-{m}.db")
-                        remove_sqlite(spec["path"])
+                    spec = dict(base, mesh=m, **place.fresh(f"graph_{m}"))
                     setups[(bname, m)] = setup = runner.run(job="setup", **spec)
                     if setup is None:
                         continue
@@ -668,7 +602,8 @@ def main(argv=None) -> int:
                         if not r:
                             continue
                         if key in KINDS:
-                            fl = floor_of(key, FLOOR_OF[key], fetches.get((bname, m)), builds.get((m, key, FLOOR_OF[key])))
+                            fl = floor_of(key, FLOOR_OF[key], fetches.get((bname, m)),
+                                          builds.get((m, key, FLOOR_OF[key])))
                             over = key == "multigraph" and fl is not None and r["seconds"] > TARGET_RATIO * fl[0]
                         else:
                             over = r["seconds"] > TARGET_SECONDS
@@ -678,20 +613,15 @@ def main(argv=None) -> int:
                             p = runner.run(job=job, profile=True, **extra, **spec)
                             if p:
                                 profiles.append((f"{bname} {mesh_label(m, args.n)}: {figure_name(key)} under cProfile "
-                                                 f"({p['seconds']:.2f} s with the profiler on, {r['seconds']:.2f} s without)", p))
-                    if pg:
-                        pg_drop_schema(pg.url, f"graph_{m}")
-                    else:
-                        remove_sqlite(spec["path"])
-            finally:
-                if pg:
-                    pg.cleanup()
+                                                 f"({p['seconds']:.2f} s with the profiler on, "
+                                                 f"{r['seconds']:.2f} s without)", p))
+                    place.drop(spec)
     finally:
         if own_workdir:
             shutil.rmtree(workdir, ignore_errors=True)
         else:
             for name in os.listdir(workdir):
-                if name.startswith(("graph-", "arrays-", "result-")):
+                if name.startswith(("graph_", "arrays-", "result-")):
                     with contextlib.suppress(OSError):
                         os.remove(os.path.join(workdir, name))
 
@@ -720,69 +650,78 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
             label = mesh_label(m, args.n)
             V, H, E, P = setup["counts"]
             notes.append(f"{bname} {label}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
-                         f"V/H/E/P {V:,}/{H:,}/{E:,}/{P:,}" + (f", {setup['skipped']} polygons skipped" if setup["skipped"] else ""))
+                         f"V/H/E/P {V:,}/{H:,}/{E:,}/{P:,}"
+                         + (f", {setup['skipped']} polygons skipped" if setup["skipped"] else ""))
             fetch = fetches.get((bname, m))
             if fetch:
                 digests.setdefault(m, {})[bname] = fetch["digest"]
                 zeros.setdefault(m, {})[bname] = fetch["negative_zeros"]
                 if fetch["edges"] != E or fetch["vertices"] != V:
-                    problems.append(f"{bname} {label}: the floor fetched {fetch['edges']:,} edges / {fetch['vertices']:,} "
-                                    f"vertices, counts() says {E:,} / {V:,}")
+                    problems.append(f"{bname} {label}: the floor fetched {fetch['edges']:,} edges / "
+                                    f"{fetch['vertices']:,} vertices, counts() says {E:,} / {V:,}")
             # -- the graph views
             for kind in KINDS:
                 r = results.get((bname, m, kind))
                 if not r:
                     continue
                 fl = floor_of(kind, FLOOR_OF[kind], fetch, builds.get((m, kind, FLOOR_OF[kind])))
-                verdict, target = "—", "— (none in SPEC)"
+                ok, target = None, "— (none in SPEC)"
                 if kind == "multigraph":
                     target = "≤ 1.3× floor"
                     if fl:
-                        verdict = "ok" if r["seconds"] <= TARGET_RATIO * fl[0] else "over"
-                figures.append(Figure(bname, m, f'to_networkx("{kind}") {label}', r["seconds"], fl[0] if fl else None,
-                                      fl[1] if fl else "missing", target, r["rss"], verdict, r["cpu"]))
-                figures.append(Figure(bname, m, f'to_networkx("{kind}") again (cache) {label}', r["cached"], None, "—",
-                                      "≈ 0 (≤ 10 ms), same object", None,
-                                      "ok" if r["cached"] <= TARGET_CACHE and r["same_object"] else "over"))
-                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") cached: the second call {r['second_call'] * 1e3:.2f} ms; "
-                             f"{CACHE_CALLS} more: median {r['cached'] * 1e3:.2f} ms (the figure), slowest {r['cached_max'] * 1e3:.2f} ms")
+                        ok = r["seconds"] <= TARGET_RATIO * fl[0]
+                figures.append(Figure(f'to_networkx("{kind}")', bname, r["seconds"], fl[0] if fl else None, target,
+                                      verdict(ok), label, cpu=r["cpu"], rss=r["rss"],
+                                      floor_parts=fl[1] if fl else "missing"))
+                figures.append(Figure(f'to_networkx("{kind}") again (cache)', bname, r["cached"], None,
+                                      "≈ 0 (≤ 10 ms), same object",
+                                      verdict(r["cached"] <= TARGET_CACHE and r["same_object"]), label,
+                                      n=CACHE_CALLS))
+                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") cached: the second call "
+                             f"{fmt_time(r['second_call'])}; {CACHE_CALLS} more: median {fmt_time(r['cached'])} "
+                             f"(the figure), slowest {fmt_time(r['cached_max'])}")
                 if not r["same_object"]:
                     problems.append(f"{bname} {label}: a second to_networkx(\"{kind}\") returned another object")
                 if r.get("mismatch"):
                     problems.append(f"{bname} {label}: to_networkx(\"{kind}\") differs from the floor's graph in "
                                     f"{'; '.join(r['mismatch'])}")
-                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") {r['nodes']:,} nodes, {r['graph_edges']:,} edges; "
-                             f"RSS {fmt_mib(r['rss_before'])} before the call, {fmt_mib(r['rss'])} after")
+                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") {r['nodes']:,} nodes, "
+                             f"{r['graph_edges']:,} edges; RSS {fmt_mib(r['rss_before'])} before the call, "
+                             f"{fmt_mib(r['rss'])} after")
                 for variant in FLOOR_VARIANTS[kind]:
                     b = builds.get((m, kind, variant))
                     f = floor_of(kind, variant, fetch, b)
                     if not f:
                         continue
                     runs = ", ".join(f"{k} {v:.2f} s" for k, v in b["runs"].items())
-                    variant_rows.append([bname, label, kind, variant + (" ← floor" if variant == FLOOR_OF[kind] else ""),
-                                         fmt_s(f[0]), f"build {runs}", fmt_mib(b["rss"]), f"{r['seconds'] / f[0]:.2f}×"])
+                    variant_rows.append([bname, label, kind,
+                                         variant + (" ← floor" if variant == FLOOR_OF[kind] else ""),
+                                         fmt_time(f[0]), f"build {runs}", fmt_mib(b["rss"]),
+                                         f"{r['seconds'] / f[0]:.2f}×"])
             # -- the summaries
             ctx = builds.get((m, "graph", "nodes"))
             for what in SUMMARIES:
                 r = results.get((bname, m, what))
                 if not r:
                     continue
-                floor, parts = None, "— (no library floor)"
+                floor, parts = None, ""
                 if what == "components" and ctx and fetch and "ncc" in ctx:
                     fe, fv = fetch_best(fetch, "edges")[0], fetch_best(fetch, "vertices")[0]
                     floor = fe + fv + ctx["seconds"] + ctx["ncc_seconds"]
                     parts = (f"context: fetch {fe + fv:.2f} + nx.Graph {ctx['seconds']:.2f} + "
                              f"number_connected_components {ctx['ncc_seconds']:.2f}")
                 applied = "" if what in ("stats", "check") else " (applied)"
-                figures.append(Figure(bname, m, f"{what}() {label}", r["seconds"], floor, parts, f"≤ 10 s{applied}",
-                                      r["rss"], "ok" if r["seconds"] <= TARGET_SECONDS else "over", r["cpu"]))
+                figures.append(Figure(f"{what}()", bname, r["seconds"], floor, f"≤ 10 s{applied}",
+                                      verdict(r["seconds"] <= TARGET_SECONDS), label, cpu=r["cpu"], rss=r["rss"],
+                                      floor_parts=parts))
             problems += summary_problems(bname, m, label, args.n, setup, fetch, ctx,
                                          {w: results.get((bname, m, w)) for w in SUMMARIES}, notes)
     for m, d in digests.items():
         if len(set(d.values())) > 1:
             problems.append(f"{mesh_label(m, args.n)}: the backends store different edge arrays or positions")
         elif len(d) > 1:
-            notes.append(f"{mesh_label(m, args.n)}: both backends store the same edges, half-edges, polygons and positions")
+            notes.append(f"{mesh_label(m, args.n)}: both backends store the same edges, half-edges, polygons and "
+                         "positions")
         if len(set(zeros[m].values())) > 1:
             notes.append(f"{mesh_label(m, args.n)}: -0.0 coordinates stored: "
                          + ", ".join(f"{b} {z}" for b, z in zeros[m].items())
@@ -790,19 +729,11 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
 
     # -- the figures
     print()
-    print(f"hestore {hestore.__version__} graph views and summaries benchmark — Python {platform.python_version()}, "
-          f"networkx {nx.__version__}, numpy {np.__version__}; every figure one run in a fresh process")
+    print("hestore graph views and summaries benchmark — every figure one run in a fresh process")
     print()
-    rows = [[f.backend, f.name, fmt_s(f.seconds) if f.seconds is None or f.seconds >= 0.1 else f"{f.seconds * 1e3:.2f} ms",
-             fmt_s(f.cpu), fmt_s(f.floor), f"{f.ratio:.2f}×" if f.ratio else "—", f.target, fmt_mib(f.rss), f.verdict]
-            for f in figures]
-    print_table(["backend", "figure", "time", "its CPU", "floor", "÷floor", "target", "peak RSS", "verdict"], rows,
-                "llrrrrlrl")
+    print_figures(figures)
     print("(time: wall clock; its CPU: user + system time of the measuring process alone, without the database")
     print(" server's, a hint of how much other load on the machine slowed the wall clock down)")
-    print()
-    print("Floor parts (seconds):")
-    print_table(["backend", "figure", "floor = "], [[f.backend, f.name, f.floor_parts] for f in figures if f.floor], "lll")
 
     print()
     print("Graph floors, every variant (fetch of this backend + build, the build once per mesh in its own process;")
@@ -818,7 +749,7 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
         for q, t in fetch["times"].items():
             best = min(t, key=t.get)
             for name, s in t.items():
-                rows.append([bname, mesh_label(m, args.n), q, name, fmt_s(s), "← used" if name == best else ""])
+                rows.append([bname, mesh_label(m, args.n), q, name, fmt_time(s), "← used" if name == best else ""])
     print_table(["backend", "mesh", "query", "variant", "time", ""], rows, "llllrl")
 
     print()
@@ -829,7 +760,8 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
     print("  vertex), then the (u, v, key) edges (\"graph\": the unique pairs); the edges-only and same-graph")
     print("  (hestore's edge attributes too) variants are printed above. Builds are timed with the garbage collector")
     print("  paused, as hestore builds (the multigraph floor also with it on). Peak RSS is the child process's own")
-    print("  ru_maxrss (the PostgreSQL server is not included); it holds the whole graph, which networkx keeps as dicts.")
+    print("  ru_maxrss (the PostgreSQL server is not included); it holds the whole graph, which networkx keeps as")
+    print("  dicts. The cached calls are timed one by one with the garbage collector paused.")
     for s in skipped:
         print(f"  SKIPPED {s}")
     for p in problems:
@@ -841,17 +773,8 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
         print(f"dominant (most own time): {p['dominant']}")
         print(p["profile"].rstrip())
 
-    # -- markdown
-    print()
-    print("| figure | backend | time | floor (its parts) | ratio | target | peak RSS | verdict |")
-    print("|---|---|---:|---|---:|---|---:|---|")
-    for f in figures:
-        t = fmt_s(f.seconds) if f.seconds is None or f.seconds >= 0.1 else f"{f.seconds * 1e3:.2f} ms"
-        floor = f"{fmt_s(f.floor)} = {f.floor_parts}" if f.floor else f.floor_parts
-        print(f"| {f.name} | {f.backend} | {t} | {floor} | {f'{f.ratio:.2f}×' if f.ratio else '—'} | {f.target} | "
-              f"{fmt_mib(f.rss)} | {f.verdict} |")
-
-    print_machine(pg_version, load_start, args.meshes_dir, elapsed, f"networkx {nx.__version__}")
+    print_markdown(figures)
+    print_machine(pg_version, load_start, elapsed, meshes=args.meshes_dir, libraries=f"networkx {nx.__version__}")
     return problems
 
 
@@ -888,7 +811,8 @@ def summary_problems(bname, m, label, n, setup, fetch, ctx, r, notes) -> list[st
                             f"the mesh has {fetch['free_halfedges']:,} free ones")
     cc = r.get("components")
     if cc:
-        notes.append(f"{bname} {label}: components() {cc['count']:,} components, the largest {cc['largest']:,} vertices")
+        notes.append(f"{bname} {label}: components() {cc['count']:,} components, the largest {cc['largest']:,} "
+                     "vertices")
         if cc["vertices"] != V:
             problems.append(f"{bname} {label}: components() cover {cc['vertices']:,} vertices of {V:,}")
         if ctx and "ncc" in ctx and cc["count"] != ctx["ncc"]:

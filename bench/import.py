@@ -53,12 +53,9 @@ step, a violation, a mismatch), never for a slow figure.
 from __future__ import annotations
 
 import contextlib
-import cProfile
 import io
 import itertools
 import os
-import platform
-import pstats
 import shutil
 import sqlite3
 import sys
@@ -67,8 +64,7 @@ import time
 import warnings
 from dataclasses import dataclass
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import numpy as np  # noqa: E402
 import sqlalchemy as sa  # noqa: E402
@@ -76,41 +72,49 @@ import sqlalchemy as sa  # noqa: E402
 import hestore  # noqa: E402
 from hestore import io as formats  # noqa: E402
 from hestore import schema  # noqa: E402
-from hestore.build import Ragged, build  # noqa: E402
+from hestore.arrays import Ragged  # noqa: E402
+from hestore.build import build  # noqa: E402
 from _common import (  # noqa: E402
-    Figure,
-    mesh_bench_parser,
-    selected_meshes,
     FILES,
-    PgRun,
+    Figure,
+    Parser,
     Runner,
     best_of,
     child_main,
     cpu_seconds,
-    fmt_mib,
-    fmt_s,
+    fmt_time,
     grid_arrays,
+    import_mesh,
     log,
     maxrss,
     mesh_label,
+    open_backend,
     pg_connect,
     pg_copy_columns,
     pg_drop_schema,
     pg_fresh_schema,
-    pg_problem,
-    pg_schema_url,
+    plain_connection,
+    plain_mesh_id,
+    print_figures,
     print_machine,
+    print_markdown,
     print_table,
     remove_sqlite,
+    selected_backends,
+    selected_meshes,
     settle,
     sqlite_connect,
     sqlite_url,
+    timed,
+    url_of,
+    verdict,
 )
 
 TARGET_RATIO = 2.0
 TARGET_RSS = 1.5e9  # bytes ("1.5 GB")
 CHUNK_ROWS = 131072  # rows per batch in the driver floors, as hestore's writer
 VALUES_ROWS = 1000  # rows per multi-row INSERT (capped by SQLite's variable limit)
+QUICK = {"n": 100, "only": "grid", "profile": "off"}
 
 
 # ==========================================================================
@@ -275,17 +279,15 @@ def numpy_build(n_vertices: int, offsets: np.ndarray, indices: np.ndarray, sort:
 
 
 def table_rows(positions: np.ndarray, built) -> list[tuple[sa.Table, dict]]:
-    """Every table's columns, with the values hestore writes (-1 / NaN = NULL)."""
+    """Every table's columns, with the values hestore writes (-1 / NaN = NULL): ``built.arrays`` as they are."""
     a = built.arrays
-    n_v, n_h, n_e, n_p = len(positions), a.halfedges, a.edges, len(built.accepted)
-    ids = np.arange(n_h, dtype=np.int64)
     return [
-        (schema.vertices, {"id": np.arange(n_v), "halfedge": a.vertex_halfedge,
+        (schema.vertices, {"id": a.v_id, "halfedge": a.v_halfedge,
                            "x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}),
-        (schema.halfedges, {"id": ids, "origin": a.origin, "next": a.next, "prev": a.prev,
-                            "twin": ids ^ 1, "edge": ids >> 1, "polygon": a.polygon}),
-        (schema.edges, {"id": np.arange(n_e), "halfedge": 2 * np.arange(n_e)}),
-        (schema.polygons, {"id": np.arange(n_p), "halfedge": a.polygon_halfedge}),
+        (schema.halfedges, {"id": a.he_id, "origin": a.he_origin, "next": a.he_next, "prev": a.he_prev,
+                            "twin": a.he_twin, "edge": a.he_edge, "polygon": a.he_polygon}),
+        (schema.edges, {"id": a.e_id, "halfedge": a.e_halfedge}),
+        (schema.polygons, {"id": a.p_id, "halfedge": a.p_halfedge}),
     ]
 
 
@@ -308,7 +310,8 @@ def sqlite_executemany(con: sqlite3.Connection, mesh_id: int, tables) -> dict:
     cur.execute("BEGIN")
     for table, cols in tables:
         names = list(cols)
-        sql = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES ({mesh_id}, {', '.join('?' * len(names))})"
+        marks = ", ".join("?" * len(names))
+        sql = f"INSERT INTO {table.name} (mesh_id, {', '.join(names)}) VALUES ({mesh_id}, {marks})"
         n = len(cols["id"])
         for s in range(0, n, CHUNK_ROWS):
             lists = [_py_list(cols[k][s : s + CHUNK_ROWS], table.c[k].nullable) for k in names]
@@ -493,10 +496,6 @@ def write_ply_numpy(path: str, positions: np.ndarray, offsets: np.ndarray, indic
 
 
 # ==========================================================================
-# Databases
-
-
-# ==========================================================================
 # Child jobs (each runs in its own process)
 
 
@@ -509,7 +508,8 @@ def job_parse_floor(spec: dict) -> dict:
     t0 = time.perf_counter()
     soup = formats.read(path)
     read_s = time.perf_counter() - t0
-    same = {name: bool(np.array_equal(p, soup.positions) and np.array_equal(o, soup.offsets) and np.array_equal(i, soup.indices))
+    same = {name: bool(np.array_equal(p, soup.positions) and np.array_equal(o, soup.offsets)
+                       and np.array_equal(i, soup.indices))
             for name, (p, o, i) in outputs.items()}
     usable = {k: v for k, v in variants.items() if same[k]}
     best = min(usable, key=usable.get) if usable else None
@@ -534,13 +534,21 @@ def job_build_floor(spec: dict) -> dict:
     built = build(nv, Ragged(inp.offsets, inp.indices))
     hestore_build = time.perf_counter() - t0
     a = built.arrays
-    ref = (a.origin, a.next, a.prev, a.polygon, a.vertex_halfedge, a.polygon_halfedge)
+    ref = (a.he_origin, a.he_next, a.he_prev, a.he_polygon, a.v_halfedge, a.p_halfedge)
     names = ("origin", "next", "prev", "polygon", "vertex.halfedge", "polygon.halfedge")
     diffs = sorted({nm for out in outputs.values() for nm, x, y in zip(names, out, ref) if not np.array_equal(x, y)})
-    counts_equal = all(len(out[0]) == a.halfedges for out in outputs.values())
+    # The floor's implicit numbering: half-edge ids 0..H-1, twin h ^ 1, edge h >> 1 owning 2e, polygons 0..P-1.
+    ids = np.arange(len(a.he_id), dtype=np.int64)
+    edges = np.arange(len(a.e_id), dtype=np.int64)
+    implicit = {"halfedge.id": (a.he_id, ids), "twin": (a.he_twin, ids ^ 1), "edge": (a.he_edge, ids >> 1),
+                "edge.id": (a.e_id, edges), "edge.halfedge": (a.e_halfedge, 2 * edges),
+                "polygon.id": (a.p_id, np.arange(len(a.p_id))), "vertex.id": (a.v_id, np.arange(nv))}
+    diffs += sorted(nm for nm, (x, y) in implicit.items() if not np.array_equal(x, y))
+    counts_equal = all(len(out[0]) == len(a.he_id) for out in outputs.values())
     best = min(variants, key=variants.get)
     return {"variants": variants, "best": best, "seconds": variants[best], "hestore_build": hestore_build,
-            "halfedges": a.halfedges, "edges": a.edges, "polygons": len(built.accepted), "refused": len(built.refused),
+            "halfedges": len(a.he_id), "edges": len(a.e_id), "polygons": len(built.accepted),
+            "refused": len(built.refused),
             "counts_equal": counts_equal, "arrays_differ": diffs, "vertices": nv}
 
 
@@ -553,12 +561,13 @@ def _fresh_sqlite_mesh(path: str) -> int:
         return con.execute("SELECT id FROM meshes WHERE name = 'floor'").fetchone()[0]
 
 
-def _fresh_pg_mesh(db_url: str, schema_name: str) -> int:
+def _fresh_pg_mesh(db_url: str, schema_name: str) -> tuple[str, int]:
+    """A new schema with hestore's tables and one empty mesh: (its URL, the mesh's id)."""
     url = pg_fresh_schema(db_url, schema_name)
     with contextlib.closing(hestore.open(url)) as store:
         store.create_mesh("floor")
     with pg_connect(url, autocommit=True) as conn:
-        return conn.execute("SELECT id FROM meshes WHERE name = 'floor'").fetchone()[0]
+        return url, conn.execute("SELECT id FROM meshes WHERE name = 'floor'").fetchone()[0]
 
 
 def job_insert_floor(spec: dict) -> dict:
@@ -583,8 +592,8 @@ def job_insert_floor(spec: dict) -> dict:
             remove_sqlite(path)
         else:
             schema_name = f"floor_{spec['mesh']}"
-            mesh_id = _fresh_pg_mesh(spec["db_url"], schema_name)
-            conn = pg_connect(pg_schema_url(spec["db_url"], schema_name))
+            url, mesh_id = _fresh_pg_mesh(spec["db_url"], schema_name)
+            conn = pg_connect(url)
             settle(spec)
             c0 = cpu_seconds()
             t0 = time.perf_counter()
@@ -605,46 +614,24 @@ def job_insert_floor(spec: dict) -> dict:
             "analyze": analyze}
 
 
-def _store_url(spec: dict) -> str:
-    return sqlite_url(spec["path"]) if spec["backend"] == "sqlite" else spec["url"]
-
-
-def _import(store, spec: dict, inp: Input | None):
-    if spec["mesh"] == "grid":
-        return store.import_arrays("grid", inp.positions, inp.faces)
-    return store.import_file(os.path.join(spec["dir"], FILES[spec["mesh"]]), spec["mesh"])
-
-
 def job_import(spec: dict) -> dict:
     inp = load_input(spec) if spec["mesh"] == "grid" else None  # the arrays a user already has
-    store = hestore.open(_store_url(spec))
+    store = hestore.open(url_of(spec))
     settle(spec)
     rss0 = maxrss()
-    profiler = cProfile.Profile() if spec.get("profile") else None
-    c0 = cpu_seconds()
-    t0 = time.perf_counter()
-    if profiler:
-        profiler.enable()
-    report = _import(store, spec, inp)
-    if profiler:
-        profiler.disable()
-    seconds = time.perf_counter() - t0
-    cpu = cpu_seconds() - c0
+    grid = (inp.positions, inp.faces) if inp else None
+    run = timed(lambda: import_mesh(store, spec["mesh"], spec["n"], spec["dir"], grid),
+                profile=spec.get("profile", False), lines=spec.get("profile_lines", 20))
     rss = maxrss()
     store.close()
-    out = {"seconds": seconds, "cpu": cpu, "rss": rss, "rss_before": rss0, "vertices": report.vertices, "edges": report.edges,
-           "polygons": report.polygons, "skipped": len(report.skipped)}
-    if profiler:
-        text = io.StringIO()
-        stats = pstats.Stats(profiler, stream=text).strip_dirs()
-        stats.sort_stats("tottime").print_stats(spec.get("profile_lines", 20))
-        stats.sort_stats("cumulative").print_stats(spec.get("profile_lines", 20))
-        out["profile"] = text.getvalue()
-    return out
+    report = run.result
+    return {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "vertices": report.vertices,
+            "edges": report.edges, "polygons": report.polygons, "skipped": len(report.skipped),
+            "profile": run.profile}
 
 
 def job_check(spec: dict) -> dict:
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
         mesh = store.mesh(spec["mesh"])
         t0 = time.perf_counter()
         violations = mesh.check()
@@ -664,14 +651,11 @@ def _same_as_input(inp: Input, positions, offsets, indices) -> list[str]:
 
 
 def job_to_arrays(spec: dict) -> dict:
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
         mesh = store.mesh(spec["mesh"])
         settle(spec)
-        c0 = cpu_seconds()
-        t0 = time.perf_counter()
-        arrays = mesh.to_arrays()
-        seconds = time.perf_counter() - t0
-        cpu = cpu_seconds() - c0
+        run = timed(mesh.to_arrays)
+        arrays, seconds, cpu = run.result, run.seconds, run.cpu
         rss = maxrss()
     inp = load_input(spec)
     polys = arrays.polygons
@@ -691,29 +675,15 @@ def job_select_floor(spec: dict) -> dict:
     variants = {}
     shapes = None
     for name, fn in SELECT_FLOORS[spec["backend"]].items():
-        if spec["backend"] == "sqlite":
-            con = sqlite_connect(spec["path"])
-            mesh_id = con.execute("SELECT id FROM meshes WHERE name = ?", (spec["mesh"],)).fetchone()[0]
-            cur = con.cursor()
-            settle(spec)
-            t0 = time.perf_counter()
-            cur.execute("BEGIN")  # one snapshot, as hestore reads
-            out = fn(cur, mesh_id, "?")
-            cur.execute("ROLLBACK")
-            variants[name] = time.perf_counter() - t0
-            con.close()
-        else:
-            conn = pg_connect(spec["url"], autocommit=True)
-            with conn.cursor() as cur:
-                cur.execute("SELECT id FROM meshes WHERE name = %s", (spec["mesh"],))
-                mesh_id = cur.fetchone()[0]
-                settle(spec)
-                t0 = time.perf_counter()
-                cur.execute("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY")  # one snapshot, as hestore reads
-                out = fn(cur, mesh_id, "%s")
-                cur.execute("ROLLBACK")
-                variants[name] = time.perf_counter() - t0
-            conn.close()
+        plain = plain_connection(spec)
+        mesh_id = plain_mesh_id(plain, spec["mesh"])
+        settle(spec)
+        t0 = time.perf_counter()
+        plain.cur.execute(plain.begin)  # one snapshot, as hestore reads
+        out = fn(plain.cur, mesh_id, plain.mark)
+        plain.cur.execute("ROLLBACK")
+        variants[name] = time.perf_counter() - t0
+        plain.con.close()
         shapes = [list(x.shape) for x in out]
         assert all(len(x) < 2 or (x[1:, 0] > x[:-1, 0]).all() for x in out), "rows did not come back in id order"
         del out
@@ -723,14 +693,11 @@ def job_select_floor(spec: dict) -> dict:
 
 def job_export(spec: dict) -> dict:
     out_path = os.path.join(spec["workdir"], f"export-{spec['mesh']}.{spec['fmt']}")
-    with contextlib.closing(hestore.open(_store_url(spec))) as store:
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
         mesh = store.mesh(spec["mesh"])
         settle(spec)
-        c0 = cpu_seconds()
-        t0 = time.perf_counter()
-        mesh.export(out_path)
-        seconds = time.perf_counter() - t0
-        cpu = cpu_seconds() - c0
+        run = timed(lambda: mesh.export(out_path))
+        seconds, cpu = run.seconds, run.cpu
         rss = maxrss()
     size = os.path.getsize(out_path)
     soup = formats.read(out_path)
@@ -776,13 +743,15 @@ JOBS = {
 
 
 def main(argv=None) -> int:
-    ap = mesh_bench_parser(__doc__, workdir_help="where SQLite files and exports go (default: a temporary folder, removed at the end)",
-                           profile_help="profile hestore's import in a separate run when it is over target (default), always, or never")
+    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=True, children=True,
+                workdir_help="where SQLite files and exports go (default: a temporary folder, removed at the end)",
+                profile="profile hestore's import in a separate run when it is over target (default), always, or never")
     args = ap.parse_args(argv)
     if args.child:
         return child_main(JOBS, args.child)
 
-    only, backends, skipped = selected_meshes(ap, args, INSERT_FLOORS)
+    backends = selected_backends(ap, args)
+    only, skipped = selected_meshes(ap, args)
 
     own_workdir = args.workdir is None
     workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_import_")
@@ -806,25 +775,14 @@ def main(argv=None) -> int:
                 floors[("write", m, fmt)] = runner.run(job="write_floor", mesh=m, fmt=fmt, **base)
 
         for bname in backends:
-            pg = None
-            if bname == "postgresql":
-                problem = pg_problem(args.pg_url)
-                if problem:
-                    skipped.append(f"postgresql: not reachable at {args.pg_url}: {problem}")
+            with open_backend(bname, workdir, args.pg_url, skipped) as place:
+                if place is None:
                     continue
-                pg = PgRun(args.pg_url)
-                pg_version = pg.version()
-            try:
+                pg_version = place.version or pg_version
                 for m in only:
-                    spec = dict(base, backend=bname, mesh=m)
-                    if pg:
-                        spec["db_url"] = pg.url
+                    spec = dict(base, backend=bname, mesh=m, db_url=place.db_url)
                     floors[("insert", m, bname)] = runner.run(job="insert_floor", **spec)
-                    if pg:
-                        spec["url"] = pg_fresh_schema(pg.url, f"imp_{m}")
-                    else:
-                        spec["path"] = os.path.join(workdir, f"import-{m}.db")
-                        remove_sqlite(spec["path"])
+                    spec = dict(base, mesh=m, **place.fresh(f"import_{m}"))
                     results[("import", bname, m)] = imp = runner.run(job="import", **spec)
                     if imp is None:
                         continue
@@ -833,36 +791,23 @@ def main(argv=None) -> int:
                     floors[("select", m, bname)] = runner.run(job="select_floor", **spec)
                     for fmt in ("ply", "obj"):
                         results[("export", bname, m, fmt)] = runner.run(job="export", fmt=fmt, **spec)
-                    if pg:
-                        pg_drop_schema(pg.url, f"imp_{m}")
-                    else:
-                        remove_sqlite(spec["path"])
+                    place.drop(spec)
                     # A profile of the import when it is over its target.
                     floor = _import_floor(floors, m, bname)
                     over = floor is not None and imp["seconds"] > TARGET_RATIO * floor[0]
                     if args.profile == "all" or (args.profile == "over" and over):
-                        if pg:
-                            spec["url"] = pg_fresh_schema(pg.url, f"prof_{m}")
-                        else:
-                            spec["path"] = os.path.join(workdir, f"profile-{m}.db")
-                            remove_sqlite(spec["path"])
+                        spec = dict(base, mesh=m, **place.fresh(f"profile_{m}"))
                         prof = runner.run(job="import", profile=True, **spec)
                         if prof:
                             profiles.append((f"{bname} {mesh_label(m, args.n)}: import under cProfile "
                                              f"({prof['seconds']:.2f} s with the profiler on)", prof["profile"]))
-                        if pg:
-                            pg_drop_schema(pg.url, f"prof_{m}")
-                        else:
-                            remove_sqlite(spec["path"])
-            finally:
-                if pg:
-                    pg.cleanup()
+                        place.drop(spec)
     finally:
         if own_workdir:
             shutil.rmtree(workdir, ignore_errors=True)
         else:
             for name in os.listdir(workdir):
-                if name.startswith(("import-", "floor-", "profile-", "export-", "result-")):
+                if name.startswith(("import_", "floor-", "profile_", "export-", "result-")):
                     with contextlib.suppress(OSError):
                         os.remove(os.path.join(workdir, name))
 
@@ -887,7 +832,8 @@ def _import_floor(floors: dict, mesh: str, backend: str) -> tuple[float, str] | 
     return total, " + ".join(parts)
 
 
-def report(args, only, backends, floors, results, profiles, skipped, errors, pg_version, load_start, elapsed) -> list[str]:
+def report(args, only, backends, floors, results, profiles, skipped, errors, pg_version, load_start,
+           elapsed) -> list[str]:
     problems = list(errors)
     figures: list[Figure] = []
     notes: list[str] = []
@@ -900,32 +846,33 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
             what = "import_arrays" if m == "grid" else "import_file"
             fl = _import_floor(floors, m, bname)
             seconds = imp["seconds"]
-            verdict = "—"
+            judged = verdict(None)
             if fl:
                 over = []
                 if seconds > TARGET_RATIO * fl[0]:
                     over.append("time")
                 if imp["rss"] > TARGET_RSS:
                     over.append("RSS")
-                verdict = "ok" if not over else f"over ({', '.join(over)})"
-            figures.append(Figure(bname, m, f"{what} {label}", seconds, fl[0] if fl else None,
-                                  fl[1] if fl else "missing", "≤ 2× floor, RSS ≤ 1.5 GB", imp["rss"], verdict, imp["cpu"]))
+                judged = verdict(True) if not over else f"{verdict(False)} ({', '.join(over)})"
+            figures.append(Figure(what, bname, seconds, fl[0] if fl else None, "≤ 2× floor, RSS ≤ 1.5 GB", judged,
+                                  label, cpu=imp["cpu"], rss=imp["rss"], floor_parts=fl[1] if fl else "missing"))
             bf = floors.get(("build", m))
             if bf and (imp["edges"] != bf["edges"] or imp["polygons"] != bf["polygons"]):
                 problems.append(f"{bname} {label}: import stored {imp['edges']} edges / {imp['polygons']} polygons, "
                                 f"the build gave {bf['edges']} / {bf['polygons']}")
             chk = results.get(("check", bname, m))
             if chk:
-                notes.append(f"{bname} {label}: mesh.check() {chk['seconds']:.2f} s, {chk['violations']} violation(s); "
-                             f"counts V/H/E/P {'/'.join(f'{c:,}' for c in chk['counts'])}")
+                notes.append(f"{bname} {label}: mesh.check() {chk['seconds']:.2f} s, {chk['violations']} "
+                             f"violation(s); counts V/H/E/P {'/'.join(f'{c:,}' for c in chk['counts'])}")
                 if chk["violations"]:
-                    problems.append(f"{bname} {label}: check() found {chk['violations']} violations, e.g. {chk['examples']}")
+                    problems.append(f"{bname} {label}: check() found {chk['violations']} violations, "
+                                    f"e.g. {chk['examples']}")
             sel = floors.get(("select", m, bname))
             ta = results.get(("to_arrays", bname, m))
             if ta:
-                figures.append(Figure(bname, m, f"to_arrays {label}", ta["seconds"], sel["seconds"] if sel else None,
-                                      f"SELECT {sel['seconds']:.2f} ({sel['best']})" if sel else "missing",
-                                      "— (none in SPEC)", ta["rss"], "—", ta["cpu"]))
+                figures.append(Figure("to_arrays", bname, ta["seconds"], sel["seconds"] if sel else None,
+                                      "— (none in SPEC)", verdict(None), label, cpu=ta["cpu"], rss=ta["rss"],
+                                      floor_parts=f"SELECT {sel['seconds']:.2f} ({sel['best']})" if sel else "missing"))
                 if ta["mismatch"]:
                     problems.append(f"{bname} {label}: to_arrays differs from the input in {ta['mismatch']}")
             for fmt in ("ply", "obj"):
@@ -937,8 +884,9 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
                 if sel and wf:
                     floor = sel["seconds"] + wf["seconds"]
                     parts = f"SELECT {sel['seconds']:.2f} + write {wf['seconds']:.2f} ({wf['best']})"
-                figures.append(Figure(bname, m, f"export {label} → .{fmt}", ex["seconds"], floor, parts or "missing",
-                                      "— (none in SPEC)", ex["rss"], "—", ex["cpu"]))
+                figures.append(Figure(f"export → .{fmt}", bname, ex["seconds"], floor, "— (none in SPEC)",
+                                      verdict(None), label, cpu=ex["cpu"], rss=ex["rss"],
+                                      floor_parts=parts or "missing"))
                 vb = ta and chk
                 rows_per_s = (chk["counts"][0] + chk["counts"][3]) / ex["seconds"] if vb else None
                 notes.append(f"{bname} {label}: export .{fmt} wrote {ex['bytes'] / 1e6:.1f} MB"
@@ -948,20 +896,11 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
 
     # -- the figures
     print()
-    print(f"hestore {hestore.__version__} bulk import/export benchmark — Python {platform.python_version()}, "
-          f"numpy {np.__version__}, SQLAlchemy {sa.__version__}; every figure one run in a fresh process")
+    print("hestore bulk import/export benchmark — every figure one run in a fresh process")
     print()
-    rows = []
-    for f in figures:
-        rows.append([f.backend, f.name, fmt_s(f.seconds), fmt_s(f.cpu), fmt_s(f.floor),
-                     f"{f.ratio:.2f}×" if f.ratio else "—", f.target, fmt_mib(f.rss), f.verdict])
-    print_table(["backend", "figure", "time", "its CPU", "floor", "÷floor", "target", "peak RSS", "verdict"], rows,
-                "llrrrrlrl")
+    print_figures(figures)
     print("(time: wall clock, the figure; its CPU: user + system time of the measuring process alone, without the")
     print(" database server's, a hint of how much other load on the machine slowed the wall clock down)")
-    print()
-    print("Floor parts (seconds):")
-    print_table(["backend", "figure", "floor = "], [[f.backend, f.name, f.floor_parts] for f in figures], "lll")
 
     # -- floors in detail
     print()
@@ -980,14 +919,17 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
             extra = ""
             if kind == "parse" and not fl["same"].get(name, True):
                 extra = "(differs from formats.read: not used)"
-            rows.append([kind, mesh_label(m, args.n), where, name, fmt_s(t), mark + (" " if mark and extra else "") + extra])
+            rows.append([kind, mesh_label(m, args.n), where, name, fmt_time(t),
+                         mark + (" " if mark and extra else "") + extra])
         if kind == "insert" and fl.get("analyze") is not None:
-            rows.append([kind, mesh_label(m, args.n), where, "(ANALYZE after it, not in the floor)", fmt_s(fl["analyze"]), ""])
+            rows.append([kind, mesh_label(m, args.n), where, "(ANALYZE after it, not in the floor)",
+                         fmt_time(fl["analyze"]), ""])
         if kind == "insert" and "multi-row VALUES" in fl.get("details", {}):
             d = fl["details"]["multi-row VALUES"]
             per = sorted(set(d["rows per statement"].values()))
             rows.append([kind, mesh_label(m, args.n), where,
-                         f"(VALUES: {'/'.join(map(str, per))} rows per statement; variable limit {d['variable limit']:,})", "", ""])
+                         f"(VALUES: {'/'.join(map(str, per))} rows per statement; "
+                         f"variable limit {d['variable limit']:,})", "", ""])
     print_table(["floor", "mesh", "backend/fmt", "variant", "time", ""], rows, "llllrl")
 
     # -- hestore's own parts, for comparison
@@ -1003,8 +945,8 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
         parts = [f"hestore.build.build {bf['hestore_build']:.2f} s vs numpy build floor {bf['seconds']:.2f} s "
                  f"({bf['hestore_build'] / bf['seconds']:.1f}×)"]
         if pf:
-            parts.append(f"formats.read {pf['formats_read']:.2f} s vs parse floor "
-                         + (f"{pf['seconds']:.2f} s ({pf['formats_read'] / pf['seconds']:.1f}×)" if pf["seconds"] else "—"))
+            ratio = f"{pf['seconds']:.2f} s ({pf['formats_read'] / pf['seconds']:.1f}×)" if pf["seconds"] else "—"
+            parts.append(f"formats.read {pf['formats_read']:.2f} s vs parse floor {ratio}")
         rows.append([label, "; ".join(parts)])
         for bname in backends:
             imp = results.get(("import", bname, m))
@@ -1052,16 +994,8 @@ def report(args, only, backends, floors, results, profiles, skipped, errors, pg_
         print(title)
         print(text.rstrip())
 
-    # -- markdown
-    print()
-    print("| figure | backend | time | floor (its parts) | ratio | target | peak RSS | verdict |")
-    print("|---|---|---:|---|---:|---|---:|---|")
-    for f in figures:
-        floor = f"{fmt_s(f.floor)} = {f.floor_parts}" if f.floor else f.floor_parts
-        print(f"| {f.name} | {f.backend} | {fmt_s(f.seconds)} | {floor} | "
-              f"{f'{f.ratio:.2f}×' if f.ratio else '—'} | {f.target} | {fmt_mib(f.rss)} | {f.verdict} |")
-
-    print_machine(pg_version, load_start, args.meshes_dir, elapsed)
+    print_markdown(figures)
+    print_machine(pg_version, load_start, elapsed, meshes=args.meshes_dir)
     return problems
 
 
