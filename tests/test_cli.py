@@ -1022,7 +1022,7 @@ def test_progress_bar_after_a_failure():
 # -- Ctrl-C ------------------------------------------------------------------------
 
 
-def _import_is_writing(db_url: str, backend: str, path: Path) -> bool:
+def _import_is_writing(db_url: str, backend: str, application: str) -> bool:
     """Whether the import has reached its write stage (rows are flowing into the database)."""
     if backend == "sqlite":
         wal = Path(sa.make_url(db_url).database + "-wal")
@@ -1030,8 +1030,8 @@ def _import_is_writing(db_url: str, backend: str, path: Path) -> bool:
     engine = sa.create_engine(db_url, poolclass=sa.pool.NullPool)
     try:
         with engine.connect() as conn:
-            copying = "SELECT count(*) FROM pg_stat_activity WHERE query LIKE 'COPY %' AND pid <> pg_backend_pid()"
-            return bool(conn.execute(sa.text(copying)).scalar())
+            copying = "SELECT count(*) FROM pg_stat_activity WHERE query LIKE 'COPY %' AND application_name = :a"
+            return bool(conn.execute(sa.text(copying), {"a": application}).scalar())
     finally:
         engine.dispose()
 
@@ -1045,13 +1045,16 @@ def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url,
     source = require_shared_meshes() / "igea-subdiv1.ply"  # about 7 s of writing: time to interrupt it
     hestore.open(db_url).close()  # the schema exists before the import starts
     env = {k: v for k, v in os.environ.items() if k != "HESTORE_URL"}
+    # The import's own connection, told apart from anything else the server runs.
+    application = f"hestore-ctrl-c-{os.getpid()}-{time.monotonic_ns()}"
+    cli_url = db_url if backend == "sqlite" else f"{db_url}&application_name={application}"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hestore", "--db", db_url, "import", str(source)],
+        [sys.executable, "-m", "hestore", "--db", cli_url, "import", str(source)],
         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     try:
         deadline = time.monotonic() + 60
-        while not _import_is_writing(db_url, backend, source):
+        while not _import_is_writing(db_url, backend, application):
             assert proc.poll() is None, f"the import ended before it could be interrupted: {proc.communicate()}"
             assert time.monotonic() < deadline, "the import never started writing"
             time.sleep(0.05)

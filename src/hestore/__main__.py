@@ -2,6 +2,9 @@
 
 import sys
 
-from hestore.cli import main
+try:
+    from hestore.cli import main
+except KeyboardInterrupt:  # Ctrl-C before the command even started: nothing to undo, nothing to say
+    sys.exit(130)
 
 sys.exit(main())

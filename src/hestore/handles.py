@@ -22,7 +22,7 @@ from hestore.errors import ElementNotFoundError, InvalidInputError
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "element_id"]
+__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "element_id", "wrap"]
 
 _ID_MIN, _ID_MAX = -(2**63), 2**63 - 1
 _set = object.__setattr__
@@ -48,6 +48,8 @@ def element_id(value: object, what: str = "element") -> int:
     ...
     hestore.errors.ElementNotFoundError: there is no vertex 1180591620717411303424: ids are 64-bit integers
     """
+    if type(value) is int and _ID_MIN <= value <= _ID_MAX:
+        return value
     if isinstance(value, bool):
         raise InvalidInputError(f"{what} ids are integers, not {value!r}")
     try:
@@ -97,8 +99,16 @@ _set_mesh = Handle.mesh.__set__
 _set_id = Handle.id.__set__
 
 
-def _wrap(cls: type, mesh: "Mesh", i: int) -> Handle:
-    """A handle of an id read from the store (an int in range): `Handle` without the checks."""
+def wrap(cls: type, mesh: "Mesh", i: int) -> Handle:
+    """A handle of an id known to be an int in range (one read from the store): `Handle` without the checks.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> wrap(Vertex, mesh, 3) == Vertex(mesh, 3)
+    True
+    """
     h = _new(cls)
     _set_mesh(h, mesh)
     _set_id(h, i)
@@ -124,7 +134,7 @@ class Vertex(Handle):
     def halfedge(self) -> "HalfEdge | None":
         """An outgoing half-edge, a free one if there is any; ``None`` if isolated."""
         h = nav.vertex_row(self.mesh, self.id)[0]
-        return None if h is None else _wrap(HalfEdge, self.mesh, h)
+        return None if h is None else wrap(HalfEdge, self.mesh, h)
 
     @property
     def position(self) -> tuple[float, float, float] | None:
@@ -150,27 +160,28 @@ class Vertex(Handle):
     def outgoing(self) -> list["HalfEdge"]:
         """Outgoing half-edges, counter-clockwise from `halfedge`."""
         m = self.mesh
-        return [_wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(m, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(m, self.id)]
 
     def incoming(self) -> list["HalfEdge"]:
         """Incoming half-edges (twins of `outgoing`, same order)."""
         m = self.mesh
-        return [_wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(m, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(m, self.id)]
 
     def neighbors(self) -> list["Vertex"]:
         """One neighbour per outgoing half-edge: repeats for parallel edges, self for a loop."""
         m = self.mesh
-        return [_wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(m, self.id)]
+        return [wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(m, self.id, targets=True)]
 
     def edges(self) -> list["Edge"]:
         """One edge per outgoing half-edge (a self-loop twice)."""
         m = self.mesh
-        return [_wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(m, self.id)]
+        return [wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(m, self.id)]
 
     def polygons(self) -> list["Polygon"]:
         """Polygons around the vertex, counter-clockwise, free gaps skipped."""
         m = self.mesh
-        return [_wrap(Polygon, m, r[nav.STAR_POLYGON]) for r in nav.star(m, self.id) if r[nav.STAR_POLYGON] is not None]
+        polygon = nav.STAR_POLYGON
+        return [wrap(Polygon, m, r[polygon]) for r in nav.star(m, self.id) if r[polygon] is not None]
 
 
 class HalfEdge(Handle):
@@ -199,38 +210,38 @@ class HalfEdge(Handle):
     @property
     def next(self) -> "HalfEdge":
         """Next half-edge around the left polygon (or boundary loop)."""
-        return _wrap(HalfEdge, self.mesh, self._record()[1])
+        return wrap(HalfEdge, self.mesh, self._record()[1])
 
     @property
     def prev(self) -> "HalfEdge":
         """Previous half-edge around the left polygon (or boundary loop)."""
-        return _wrap(HalfEdge, self.mesh, self._record()[2])
+        return wrap(HalfEdge, self.mesh, self._record()[2])
 
     @property
     def twin(self) -> "HalfEdge":
         """The opposite half-edge."""
-        return _wrap(HalfEdge, self.mesh, self._record()[3])
+        return wrap(HalfEdge, self.mesh, self._record()[3])
 
     @property
     def origin(self) -> Vertex:
         """Start vertex."""
-        return _wrap(Vertex, self.mesh, self._record()[0])
+        return wrap(Vertex, self.mesh, self._record()[0])
 
     @property
     def target(self) -> Vertex:
         """End vertex."""
-        return _wrap(Vertex, self.mesh, self._record()[6])
+        return wrap(Vertex, self.mesh, self._record()[6])
 
     @property
     def polygon(self) -> "Polygon | None":
         """Left polygon, ``None`` if free."""
         p = self._record()[5]
-        return None if p is None else _wrap(Polygon, self.mesh, p)
+        return None if p is None else wrap(Polygon, self.mesh, p)
 
     @property
     def edge(self) -> "Edge":
         """The edge this is half of."""
-        return _wrap(Edge, self.mesh, self._record()[4])
+        return wrap(Edge, self.mesh, self._record()[4])
 
     @property
     def is_boundary(self) -> bool:
@@ -308,7 +319,7 @@ class Edge(Handle):
     @property
     def halfedge(self) -> HalfEdge:
         """One of the two half-edges (the one from the first vertex given to ``add_edge``)."""
-        return _wrap(HalfEdge, self.mesh, self._row()[0])
+        return wrap(HalfEdge, self.mesh, self._row()[0])
 
     @property
     def is_boundary(self) -> bool:
@@ -330,17 +341,17 @@ class Edge(Handle):
     def halfedges(self) -> tuple[HalfEdge, HalfEdge]:
         """``(halfedge, halfedge.twin)``."""
         row = self._row()
-        return _wrap(HalfEdge, self.mesh, row[0]), _wrap(HalfEdge, self.mesh, row[1])
+        return wrap(HalfEdge, self.mesh, row[0]), wrap(HalfEdge, self.mesh, row[1])
 
     def vertices(self) -> tuple[Vertex, Vertex]:
         """``(halfedge.origin, halfedge.target)``."""
         row = self._row()
-        return _wrap(Vertex, self.mesh, row[2]), _wrap(Vertex, self.mesh, row[3])
+        return wrap(Vertex, self.mesh, row[2]), wrap(Vertex, self.mesh, row[3])
 
     def polygons(self) -> list["Polygon"]:
         """Polygons on its two sides, free sides skipped."""
         row = self._row()
-        return [_wrap(Polygon, self.mesh, p) for p in (row[4], row[5]) if p is not None]
+        return [wrap(Polygon, self.mesh, p) for p in (row[4], row[5]) if p is not None]
 
 
 class Polygon(Handle):
@@ -363,7 +374,7 @@ class Polygon(Handle):
     @property
     def halfedge(self) -> HalfEdge:
         """One half-edge of its loop."""
-        return _wrap(HalfEdge, self.mesh, nav.polygon_halfedge(self.mesh, self.id))
+        return wrap(HalfEdge, self.mesh, nav.polygon_halfedge(self.mesh, self.id))
 
     @property
     def degree(self) -> int:
@@ -373,19 +384,19 @@ class Polygon(Handle):
     def halfedges(self) -> list[HalfEdge]:
         """Its half-edges in ``next`` order from `halfedge`."""
         m = self.mesh
-        return [_wrap(HalfEdge, m, r[0]) for r in nav.ring(m, self.id)]
+        return [wrap(HalfEdge, m, r[0]) for r in nav.ring(m, self.id)]
 
     def vertices(self) -> list[Vertex]:
         """Its corners, counter-clockwise."""
         m = self.mesh
-        return [_wrap(Vertex, m, r[2]) for r in nav.ring(m, self.id)]
+        return [wrap(Vertex, m, r[2]) for r in nav.ring(m, self.id)]
 
     def edges(self) -> list[Edge]:
         """Its edges, in order."""
         m = self.mesh
-        return [_wrap(Edge, m, r[3]) for r in nav.ring(m, self.id)]
+        return [wrap(Edge, m, r[3]) for r in nav.ring(m, self.id)]
 
     def neighbors(self) -> list["Polygon"]:
         """Polygons across its edges (``None`` sides skipped; itself where it meets itself)."""
         m = self.mesh
-        return [_wrap(Polygon, m, r[4]) for r in nav.ring(m, self.id) if r[4] is not None]
+        return [wrap(Polygon, m, r[4]) for r in nav.ring(m, self.id) if r[4] is not None]

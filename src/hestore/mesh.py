@@ -28,7 +28,7 @@ from hestore.errors import (
     TopologyError,
     Violation,
 )
-from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex
+from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
 
@@ -196,9 +196,9 @@ class Mesh:
     # -- lookup and iteration -----------------------------------------------
 
     def _lookup(self, kind: type, what: str, i: object) -> Handle:
-        handle = kind(self, i)  # refuses what cannot be an id
-        navigation.exists(self, what, handle.id)
-        return handle
+        i = element_id(i, what)  # refuses what cannot be an id
+        navigation.exists(self, what, i)
+        return wrap(kind, self, i)
 
     def vertex(self, id: int) -> Vertex:
         """The vertex with this id (`ElementNotFoundError` if there is none).

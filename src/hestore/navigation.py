@@ -141,48 +141,64 @@ def vertex_row(mesh: "Mesh", v: int) -> tuple:
     return rows[0]
 
 
-def _build_star():
-    v, t = schema.vertices, _H.alias("t")
-    j = v.outerjoin(_H, sa.and_(_H.c.mesh_id == v.c.mesh_id, _H.c.origin == v.c.id)).outerjoin(
-        t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)
-    )
-    stmt = (
-        sa.select(v.c.halfedge, _H.c.id, _H.c.prev, _H.c.twin, _H.c.edge, _H.c.polygon, t.c.origin)
-        .select_from(j)
-        .where(v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i"))
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_origin")
+def _star_query(targets: bool):
+    def build():
+        v, t = schema.vertices, _H.alias("t")
+        j = v.outerjoin(_H, sa.and_(_H.c.mesh_id == v.c.mesh_id, _H.c.origin == v.c.id))
+        extra = [_H.c.edge, _H.c.polygon]
+        if targets:
+            j = j.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
+            extra = [t.c.origin]
+        stmt = (
+            sa.select(v.c.halfedge, _H.c.id, _H.c.prev, _H.c.twin, *extra)
+            .select_from(j)
+            .where(v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i"))
+        )
+        return indexed_by(stmt, _H, "ix_halfedges_origin")
+
+    return ("nav_star_targets" if targets else "nav_star"), build
 
 
-#: Fields of a `star` row.
-STAR_ID, STAR_PREV, STAR_TWIN, STAR_EDGE, STAR_POLYGON, STAR_TARGET = range(1, 7)
+_STARS = {False: _star_query(False), True: _star_query(True)}
+
+#: Fields of a `star` row: the half-edge, its prev and twin; then its edge and polygon, or (``targets``) its target.
+STAR_ID, STAR_PREV, STAR_TWIN = 1, 2, 3
+STAR_EDGE, STAR_POLYGON = 4, 5
+STAR_TARGET = 4
 
 
-def star(mesh: "Mesh", v: int) -> list[tuple]:
+def star(mesh: "Mesh", v: int, *, targets: bool = False) -> list[tuple]:
     """Outgoing half-edges of vertex ``v``, counter-clockwise from ``v.halfedge``.
 
-    Each row is ``(v.halfedge, id, prev, twin, edge, polygon, target)`` (the
-    `STAR_ID` ... `STAR_TARGET` fields). One query for the whole star,
-    ordered here: ``onext(h) = twin(prev(h))``, so the row after ``r`` is the
-    one whose twin is ``r``'s prev.
+    Each row is ``(v.halfedge, id, prev, twin, edge, polygon)``, or with
+    ``targets`` ``(v.halfedge, id, prev, twin, target)`` (the ``STAR_*``
+    fields): only the neighbours need the twins' rows, so only they pay for
+    reading them. One query for the whole star, ordered here: ``onext(h) =
+    twin(prev(h))``, so the row after ``r`` is the one whose twin is ``r``'s
+    prev.
     """
-    rows = _rows(mesh, "nav_star", _build_star, {"i": v})
+    key, build = _STARS[targets]
+    rows = mesh.session.fetch(mesh.ref, key, build, {"i": v})
     if not rows:
         raise missing(mesh, "vertex", v)
     start = rows[0][0]
     if start is None:
         return []
-    n = len(rows)
     after = {r[3]: r for r in rows}  # incoming half-edge -> the outgoing row it is the twin of
-    r = next((r for r in rows if r[1] == start), None)
-    ordered = []
-    while r is not None and len(ordered) < n:
-        ordered.append(r)
-        r = after.get(r[2])
-        if r is not None and r[1] == start:
+    for r in rows:
+        if r[1] == start:
+            ordered = [r]
+            for _ in range(len(rows) - 1):
+                r = after.get(r[2])
+                if r is None or r[1] == start:
+                    break
+                ordered.append(r)
+            else:
+                # Every row visited once: the rotation must close back at the start.
+                r = after.get(r[2])
+                if r is not None and r[1] == start:
+                    return ordered
             break
-    if r is not None and r[1] == start and len(ordered) == n:
-        return ordered
     raise InvariantViolationError(
         [Violation("V_ROTATION", "vertex", (v,), f"the rotation around vertex {v} does not close; run check()")]
     )

@@ -565,7 +565,7 @@ class Session:
             stmt = self.statements.get(key, build)
             values["m"] = ref.id
             cur = self._cur
-            cur.execute(stmt.sql, stmt.params(values))
+            cur.execute(stmt.sql, stmt.bind(values))
             return cur.fetchall()
         except HestoreError:
             raise

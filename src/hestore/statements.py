@@ -61,7 +61,7 @@ class Prepared:
         The dialect to compile for.
     """
 
-    __slots__ = ("sql", "_pick", "_fixed")
+    __slots__ = ("sql", "bind", "_pick", "_fixed")
 
     def __init__(self, stmt: Any, dialect: sa.engine.Dialect) -> None:
         compiled = _compiler_for(dialect)(dialect, stmt)
@@ -79,6 +79,8 @@ class Prepared:
             self._pick = operator.itemgetter(*order) if order else lambda values: ()
         # Literals the statement carries itself (a LIMIT, a CASE's constants).
         self._fixed = {k: v for k, v in compiled.params.items() if v is not None}
+        #: ``bind(values)``: the driver's parameters for named values (`params`, one call less when it can).
+        self.bind = self._pick if self._pick is not None and not self._fixed else self.params
 
     def params(self, values: dict[str, Any]) -> Any:
         """Arrange named values the way the driver wants them."""
