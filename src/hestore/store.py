@@ -291,8 +291,10 @@ class Store:
         >>> store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).polygons
         1
         """
-        return bulk.import_arrays(self, name, positions, polygons, on_error=on_error, **options)
+        return bulk.import_arrays(self, _checked_name(name), positions, polygons, on_error=on_error, **options)
 
     def import_file(self, path, name: str | None = None, *, on_error: str = "raise", **options) -> bulk.ImportReport:
         """Import an OFF, OBJ or PLY file as a new mesh; see `hestore.bulk.import_file`."""
+        if name is not None:
+            name = _checked_name(name)
         return bulk.import_file(self, path, name, on_error=on_error, **options)
