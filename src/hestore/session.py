@@ -232,11 +232,6 @@ class Session:
         """The error for a mesh that is not in the database (deleted, or never committed)."""
         return MeshNotFoundError(f"mesh {ref.name!r} has been deleted from {self.shown_url}")
 
-    @property
-    def closed(self) -> bool:
-        """Whether `close` has been called."""
-        return self._closed
-
     # -- mesh identities -----------------------------------------------------
 
     def ref(self, mesh_id: int, name: str) -> MeshRef:

@@ -194,8 +194,12 @@ def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | Non
     []
     """
     tables = read_columns(connection, mesh_id, _REQUESTS, use_copy=use_copy)
-    columns = [col for table in tables for col in table]
-    return TopologyArrays(*columns)
+    return _arrays(tables)
+
+
+def _arrays(tables: list) -> TopologyArrays:
+    """`TopologyArrays` from the columns `_REQUESTS` read, table by table."""
+    return TopologyArrays(*(col for table in tables for col in table))
 
 
 # --------------------------------------------------------------------------
@@ -859,5 +863,4 @@ def check(mesh: "Mesh") -> list[Violation]:
     """
     with mesh.session.snapshot(mesh.ref) as snap:
         tables = snap.columns(_REQUESTS)
-    arrays = TopologyArrays(*(col for table in tables for col in table))
-    return check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
+    return check_arrays(_arrays(tables), allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
