@@ -96,7 +96,9 @@ def read_snapshot(connection: sa.Connection) -> Iterator[None]:
         cursor.close()
 
 
-def _fetch_cursor(connection: sa.Connection, table: sa.Table, columns: Sequence, mesh_id: int) -> list[np.ndarray]:
+def _fetch_cursor(
+    connection: sa.Connection, table: sa.Table, columns: Sequence, mesh_id: int, where: Sequence = ()
+) -> list[np.ndarray]:
     """``SELECT columns ... WHERE mesh_id = ... ORDER BY id``, read from the DBAPI cursor in chunks.
 
     Each chunk of rows becomes one structured array with `numpy.fromiter`
@@ -104,7 +106,7 @@ def _fetch_cursor(connection: sa.Connection, table: sa.Table, columns: Sequence,
     peak memory is about one copy of the result.
     """
     dtype = np.dtype([(f"c{k}", np.float64 if _is_float(c) else np.int64) for k, c in enumerate(columns)])
-    stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id).order_by(table.c.id)
+    stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id, *where).order_by(table.c.id)
     parts: list[np.ndarray] = []
     result = connection.execute(stmt)
     try:
@@ -189,10 +191,10 @@ def _fetch_pg_copy(connection: sa.Connection, mesh_id: int, requests: Sequence) 
     from_ = None
     columns = []
     dtypes = []
-    for k, (table, cols) in enumerate(requests):
+    for k, (table, cols, *where) in enumerate(requests):
         aggregated = (
             sa.select(*(sa.func.array_agg(_as_8_bytes(c)).label(f"c{i}") for i, c in enumerate(cols)))
-            .where(table.c.mesh_id == mesh_id)
+            .where(table.c.mesh_id == mesh_id, *(where[0] if where else ()))
             .subquery(f"t{k}")
         )
         columns.extend(aggregated.c)
@@ -226,10 +228,11 @@ def read_columns(
         An open connection to a database holding `hestore.schema`'s tables.
     mesh_id : int
         The ``meshes.id`` whose rows are read.
-    requests : sequence of (Table, sequence of column expressions)
+    requests : sequence of (Table, sequence of column expressions[, conditions])
         For each table, the expressions to read; the first must be the
-        table's ``id``. Expressions must not be NULL (use ``coalesce``);
-        ``Float`` ones come back as float64, the others as int64.
+        table's ``id``; optional conditions narrow the rows beyond the mesh.
+        Expressions must not be NULL (use ``coalesce``); ``Float`` ones come
+        back as float64, the others as int64.
     use_copy : bool or None, optional
         Force (True) or forbid (False) the PostgreSQL ``COPY`` path; by
         default it is used on PostgreSQL with psycopg 3.
@@ -260,11 +263,11 @@ def read_columns(
     else:
         flat = []
         with read_snapshot(connection):
-            for table, cols in requests:
-                flat.extend(_fetch_cursor(connection, table, cols, mesh_id))
+            for table, cols, *where in requests:
+                flat.extend(_fetch_cursor(connection, table, cols, mesh_id, where[0] if where else ()))
     out = []
     start = 0
-    for _, cols in requests:
+    for _, cols, *_where in requests:
         group = flat[start : start + len(cols)]
         start += len(cols)
         ids = group[0]
@@ -291,6 +294,7 @@ def write_columns(
     columns: Mapping[str, np.ndarray],
     *,
     progress: Callable[[int], None] | None = None,
+    nulls: bool = True,
 ) -> None:
     """Insert one row per array element: ``mesh_id`` and the given columns.
 
@@ -306,7 +310,8 @@ def write_columns(
         Written into every row.
     columns : mapping of column name to ndarray
         Equal-length arrays. In a nullable column, ``-1`` (integers) or NaN
-        (floats) is written as NULL.
+        (floats) is written as NULL; with ``nulls=False`` only NaN is (-1 is a
+        value: property values are written so).
     progress : callable, optional
         Called with the number of rows written after each batch.
 
@@ -324,7 +329,7 @@ def write_columns(
     """
     names = list(columns)
     arrays = [np.asarray(columns[n]) for n in names]
-    nullable = [table.c[n].nullable for n in names]
+    nullable = [table.c[n].nullable and (nulls or a.dtype.kind == "f") for n, a in zip(names, arrays)]
     n_rows = len(arrays[0]) if arrays else 0
     if uses_copy(dialect):
         _write_pg_copy(cursor, table, mesh_id, names, arrays, nullable, n_rows, progress)

@@ -12,6 +12,7 @@ Hierarchy::
     HestoreError
     ├── ElementNotFoundError (KeyError)      an id or handle that does not exist here
     │   └── MeshNotFoundError                no such mesh, or a deleted / rolled-back one
+    ├── PropertyNotFoundError (KeyError)     no property of that name on that kind
     ├── InvalidInputError (ValueError)       malformed arguments, files, arrays, names, URLs
     │   └── MeshExistsError
     ├── TopologyError                        a valid request the structure cannot take
@@ -39,6 +40,7 @@ __all__ = [
     "HestoreError",
     "ElementNotFoundError",
     "MeshNotFoundError",
+    "PropertyNotFoundError",
     "InvalidInputError",
     "MeshExistsError",
     "TopologyError",
@@ -79,6 +81,13 @@ class MeshNotFoundError(ElementNotFoundError):
     transaction that created it has been rolled back (its id may then belong
     to another mesh, which the handle never touches).
     """
+
+
+class PropertyNotFoundError(HestoreError, KeyError):
+    """No property of that name is declared on that element kind of the mesh."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
 
 
 class InvalidInputError(HestoreError, ValueError):

@@ -4,7 +4,9 @@ A handle is a mesh and an id, nothing more. Handles are equal when mesh and
 id are equal, hashable, and stay valid across transactions because ids are
 never reused; a handle whose element was removed raises
 `ElementNotFoundError` when used. Every property and method delegates to a
-free function of `hestore.navigation` and wraps the ids it returns.
+free function of `hestore.navigation` and wraps the ids it returns;
+``handle[name]`` reads and writes the element's value of a property through
+`hestore.properties` (``del handle[name]`` unsets it).
 
 The seeds' alternative vocabularies are aliases of the primary names, listed
 in each class's docstring: ``lnext``/``lprev``/``sym``/``org``/``dest``
@@ -17,6 +19,7 @@ import operator
 from typing import TYPE_CHECKING
 
 from hestore import navigation as nav
+from hestore import properties as props
 from hestore.errors import ElementNotFoundError, InvalidInputError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -93,6 +96,21 @@ class Handle:
     def __reduce__(self):
         raise TypeError(f"{type(self).__name__} handles are bound to an open store; pickle .id instead")
 
+    #: The element kind, as property kinds name it.
+    kind: str = ""
+
+    def __getitem__(self, name: str):
+        """The element's value of property ``name`` (see `hestore.Mesh.add_property`)."""
+        return props.value(self.mesh, self.kind, self.id, name)
+
+    def __setitem__(self, name: str, value) -> None:
+        """Set the element's value of property ``name``: an edit like any other."""
+        props.set_value(self.mesh, self.kind, self.id, name, value)
+
+    def __delitem__(self, name: str) -> None:
+        """Unset the element's value of property ``name`` (back to the default)."""
+        props.set_value(self.mesh, self.kind, self.id, name, None)
+
 
 _new = object.__new__
 _set_mesh = Handle.mesh.__set__
@@ -129,6 +147,7 @@ class Vertex(Handle):
     """
 
     __slots__ = ()
+    kind = "vertex"
 
     @property
     def halfedge(self) -> "HalfEdge | None":
@@ -203,6 +222,7 @@ class HalfEdge(Handle):
     """
 
     __slots__ = ()
+    kind = "halfedge"
 
     def _record(self) -> tuple:
         return nav.halfedge_record(self.mesh, self.id)
@@ -312,6 +332,7 @@ class Edge(Handle):
     """
 
     __slots__ = ()
+    kind = "edge"
 
     def _row(self) -> tuple:
         return nav.edge_row(self.mesh, self.id)
@@ -370,6 +391,7 @@ class Polygon(Handle):
     """
 
     __slots__ = ()
+    kind = "polygon"
 
     @property
     def halfedge(self) -> HalfEdge:

@@ -12,15 +12,13 @@ identity (`hestore.session.MeshRef`) and policy.
 
 from __future__ import annotations
 
-import math
-import numbers
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, kernel, navigation, schema, summary, validation
+from hestore import bulk, kernel, navigation, properties, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -29,6 +27,7 @@ from hestore.errors import (
     Violation,
 )
 from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
+from hestore.values import Property
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
 
@@ -262,23 +261,6 @@ class Mesh:
 
     # -- editing ------------------------------------------------------------
 
-    @staticmethod
-    def _position(position) -> tuple[float, float, float] | None:
-        if position is None:
-            return None
-        what = "a position is three finite numbers (x, y, z)"
-        if isinstance(position, (str, bytes, dict, set)) or not hasattr(position, "__iter__"):
-            raise InvalidInputError(f"{what}, not {type(position).__name__} {position!r}")
-        xyz = tuple(position)
-        if len(xyz) != 3:
-            raise InvalidInputError(f"{what}, not {len(xyz)} values: {position!r}")
-        if not all(isinstance(c, numbers.Real) and not isinstance(c, bool) for c in xyz):
-            raise InvalidInputError(f"{what}, not {position!r}")
-        xyz = tuple(float(c) for c in xyz)
-        if not all(math.isfinite(c) for c in xyz):
-            raise InvalidInputError(f"{what}, not {position!r}")
-        return xyz
-
     def add_vertex(self, position=None) -> Vertex:
         """Add an isolated vertex, optionally at ``position = (x, y, z)``.
 
@@ -290,7 +272,7 @@ class Mesh:
         >>> v, v.position, v.is_isolated
         (Vertex(0), (1.0, 2.0, 3.0), True)
         """
-        xyz = self._position(position)
+        xyz = properties.check_position(position)
         with self._edit() as uow:
             return Vertex(self, kernel.add_vertex(uow, xyz))
 
@@ -476,6 +458,86 @@ class Mesh:
         iv = self._own(v, Vertex)
         with self._edit() as uow:
             kernel.remove_vertex(uow, iv)
+
+    # -- positions and properties -------------------------------------------
+
+    def _element(self, handle: object, kind: type) -> int:
+        """A handle of this mesh, or an id, as an id."""
+        return self._own(handle, kind) if isinstance(handle, Handle) else element_id(handle, kind.kind)
+
+    def _elements(self, items: object, kind: type) -> object:
+        """A sequence of handles of this mesh as ids; anything else is left for the callee to check."""
+        if isinstance(items, (list, tuple)) and any(isinstance(x, Handle) for x in items):
+            return [self._own(x, kind) for x in items]
+        return items
+
+    def set_position(self, v: Vertex, position) -> None:
+        """Move a vertex to ``position = (x, y, z)``, or take its position away with None.
+
+        An edit like any other: atomic, inside or outside a block, rolled back
+        with it, counted in `revision`. Coordinates must be finite.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> v = mesh.add_vertex((0, 0, 0))
+        >>> mesh.set_position(v, (1, 2, 3)); v.position
+        (1.0, 2.0, 3.0)
+        >>> mesh.set_position(v, None); v.position is None
+        True
+        """
+        properties.set_position(self, self._element(v, Vertex), position)
+
+    def set_positions(self, vertices, positions) -> None:
+        """Move many vertices at once: one set-based write; see `hestore.properties.set_positions`.
+
+        ``vertices`` are `Vertex` handles or ids (each once), ``positions``
+        an ``(n, 3)`` array of finite numbers.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        >>> arrays = mesh.to_arrays()
+        >>> mesh.set_positions(arrays.vertex_ids, arrays.positions * 2)
+        >>> mesh.vertex(1).position
+        (2.0, 0.0, 0.0)
+        """
+        properties.set_positions(self, self._elements(vertices, Vertex), positions)
+
+    def add_property(self, kind: str, name: str, dtype: str, *, shape: tuple = (), default=None) -> Property:
+        """Declare a property on every element of a kind; see `hestore.properties.add_property`.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> mesh.add_property("polygon", "label", "str", default="")
+        Property(kind='polygon', name='label', dtype='str', shape=(), default='')
+        """
+        return properties.add_property(self, kind, name, dtype, shape=shape, default=default)
+
+    def properties(self, kind: str) -> dict[str, Property]:
+        """The properties declared on a kind, by name; see `hestore.properties.properties`."""
+        return properties.properties(self, kind)
+
+    def remove_property(self, kind: str, name: str) -> None:
+        """Remove a property with all its values; see `hestore.properties.remove_property`."""
+        properties.remove_property(self, kind, name)
+
+    def property_array(self, kind: str, name: str):
+        """``(ids, values)`` of every live element of a kind; see `hestore.properties.property_array`."""
+        return properties.property_array(self, kind, name)
+
+    def set_property_array(self, kind: str, name: str, ids, values) -> None:
+        """Set many elements' values at once; see `hestore.properties.set_property_array`.
+
+        ``ids`` are ids, or handles of the kind.
+        """
+        cls = _KIND_OF.get(kind, Handle)
+        properties.set_property_array(self, kind, name, self._elements(ids, cls), values)
 
     # -- graph views and bulk export -------------------------------------------
 

@@ -16,14 +16,34 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
 from hestore.columns import write_columns
 from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
-from hestore.unitofwork import HE_COLUMNS, K_EDGE, K_HALFEDGE, K_POLYGON, K_VERTEX, ChangeSet
+from hestore.unitofwork import (
+    HE_COLUMNS,
+    K_EDGE,
+    K_HALFEDGE,
+    K_POLYGON,
+    K_VERTEX,
+    UNSET,
+    BulkValues,
+    ChangeSet,
+    PropertyChanges,
+)
+from hestore.values import Property, dump_default, property_of, table_of
 
 __all__ = ["Persistence"]
+
+
+def _catalogue_row(p: Property) -> tuple:
+    return (p.id, p.kind, p.name, p.dtype, p.size, dump_default(p.default))
+
+
+def _value_columns(table: sa.Table) -> tuple:
+    return ("property", "id", "part") + tuple(c.name for c in table.c if c.name.startswith("v"))
 
 
 def _load_statement(sizes: tuple) -> sa.CompoundSelect:
@@ -81,11 +101,19 @@ def _load_statement(sizes: tuple) -> sa.CompoundSelect:
 def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
     """PostgreSQL SQL writing many rows of ``table`` from one array per column."""
     q = '"{}"'.format
-    types = ["double precision" if isinstance(table.c[c].type, sa.Float) else "bigint" for c in cols]
-    arrays = ", ".join(f"%s::{t}[]" for t in types)
+
+    def sql_type(c: str) -> str:
+        t = table.c[c].type
+        return "double precision" if isinstance(t, sa.Float) else "text" if isinstance(t, sa.String) else "bigint"
+
+    arrays = ", ".join(f"%s::{sql_type(c)}[]" for c in cols)
     name = q(table.name)
     if what == "delete":
-        return f"DELETE FROM {name} WHERE {q('id')} = ANY(%s::bigint[]) AND {q('mesh_id')} = %s"
+        match = " AND ".join(f"t.{q(c)} = u.{q(c)}" for c in cols)
+        return (
+            f"DELETE FROM {name} AS t USING unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
+            f"WHERE t.{q('mesh_id')} = %s AND {match}"
+        )
     if what == "insert":
         columns = ", ".join(q(c) for c in ("mesh_id",) + tuple(cols))
         return f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
@@ -97,6 +125,9 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
 
 
 _VERTEX_INSERT = ("id", "halfedge", "x", "y", "z")
+_POSITION = ("id", "x", "y", "z")
+_CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
+_VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
 _HE_UPDATE = ("id", "next", "prev", "polygon")
 
@@ -121,21 +152,37 @@ class Persistence:
     # -- the catalogue row ------------------------------------------------
 
     def mesh_row(self, mesh_id: int, *, lock: bool) -> tuple | None:
-        """``(next_vertex, next_edge, next_polygon, allow_loops, allow_multi_edges)``, or None.
+        """The mesh's counters, policy and whether it has properties, or None.
 
-        With ``lock`` the row is locked for the rest of the transaction
-        (``SELECT ... FOR UPDATE``; the caller sets the lock timeout).
+        ``(next_vertex, next_edge, next_polygon, next_property, allow_loops,
+        allow_multi_edges, has_properties)``. With ``lock`` the row is locked
+        for the rest of the transaction (``SELECT ... FOR UPDATE``; the caller
+        sets the lock timeout).
         """
-        m = schema.meshes
+        m, props = schema.meshes, schema.properties
 
         def build():
+            has = sa.exists().where(props.c.mesh_id == m.c.id)
             stmt = sa.select(
-                m.c.next_vertex, m.c.next_edge, m.c.next_polygon, m.c.allow_loops, m.c.allow_multi_edges
+                m.c.next_vertex, m.c.next_edge, m.c.next_polygon, m.c.next_property,
+                m.c.allow_loops, m.c.allow_multi_edges, has,
             ).where(m.c.id == sa.bindparam("m"))
-            return stmt.with_for_update() if lock else stmt
+            return stmt.with_for_update(of=m) if lock else stmt
 
         rows = self.st.get(("mesh_row", lock), build).rows(self.cursor(), {"m": mesh_id})
         return rows[0] if rows else None
+
+    def catalogue(self, mesh_id: int) -> list[Property]:
+        """The mesh's declared properties."""
+        p = schema.properties
+
+        def build():
+            cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+            return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m")).order_by(p.c.id)
+
+        return [
+            property_of(*row) for row in self.st.get("catalogue", build).rows(self.cursor(), {"m": mesh_id})
+        ]
 
     # -- loads -----------------------------------------------------------
 
@@ -184,7 +231,7 @@ class Persistence:
         """
         mesh_id = changes.mesh_id
         if changes.drop:
-            for table in schema.ELEMENT_TABLES:
+            for table in schema.MESH_TABLES:
                 drop = lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m"))  # noqa: E731
                 self._run(("drop", table.name), drop, mesh_id)
             ms = schema.meshes
@@ -202,6 +249,8 @@ class Persistence:
         write(mesh_id, v, "update", _PAIR, changes.vertices.updated)
         if changes.bulk is not None:
             self._write_bulk(mesh_id, changes.bulk)
+        if changes.properties is not None:
+            self._write_properties(mesh_id, changes.properties)
         ms = schema.meshes
         upd_m = self.st.get(
             "upd_mesh",
@@ -211,11 +260,77 @@ class Persistence:
                 next_vertex=sa.bindparam("nv"),
                 next_edge=sa.bindparam("ne"),
                 next_polygon=sa.bindparam("np"),
+                next_property=sa.bindparam("nq"),
                 revision=ms.c.revision + sa.bindparam("bump"),
             ),
         )
-        nv, ne, np_ = changes.counters
-        upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "bump": changes.bump})
+        nv, ne, np_, nq = changes.counters
+        upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump})
+
+    def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
+        """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
+        write = self._write_pg if self._pg else self._write_many
+        v, catalogue = schema.vertices, schema.properties
+        for prop in pc.removed:
+            self._clear(mesh_id, prop)
+        write(mesh_id, catalogue, "delete", ("id",), [(p.id,) for p in pc.removed])
+        write(mesh_id, catalogue, "insert", _CATALOGUE, [_catalogue_row(p) for p in pc.added])
+        for bulk in pc.bulk:
+            self._write_bulk_values(mesh_id, bulk)
+        deletes: dict = {}
+        inserts: dict = {}
+        for (pid, i), (prop, rows) in pc.values.items():
+            table = table_of(prop.dtype)
+            deletes.setdefault(table, []).append((pid, i))
+            if rows is not UNSET:
+                pad = (None,) * (len(table.c) - 4)
+                inserts.setdefault(table, []).extend((pid, i, *(row + pad)[: len(table.c) - 3]) for row in rows)
+        for table, keys in deletes.items():
+            write(mesh_id, table, "delete", _VALUE_KEY, keys)
+        for table, rows in inserts.items():
+            write(mesh_id, table, "insert", _value_columns(table), rows)
+        write(mesh_id, v, "update", _POSITION, pc.positions)
+        # Purged after the writes: values set in this flush on elements it deletes go too.
+        purge: dict = {}
+        for prop, ids in pc.purge:
+            purge.setdefault(table_of(prop.dtype), []).extend((prop.id, i) for i in ids)
+        for table, keys in purge.items():
+            write(mesh_id, table, "delete", _VALUE_KEY, keys)
+
+    def _clear(self, mesh_id: int, prop: Property) -> None:
+        """Delete every value of one property."""
+        table = table_of(prop.dtype)
+
+        def build():
+            return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
+
+        self.st.get(("clear", table.name), build).run(self.cursor(), {"m": mesh_id, "q": prop.id})
+
+    def _write_bulk_values(self, mesh_id: int, bulk: BulkValues) -> None:
+        """One set-based write of many elements' values (or positions)."""
+        write = self._write_pg if self._pg else self._write_many
+        if bulk.prop is None:
+            cols = bulk.columns
+            rows = list(zip(*(cols[c].tolist() for c in _POSITION)))
+            write(mesh_id, schema.vertices, "update", _POSITION, rows)
+            return
+        prop = bulk.prop
+        table = table_of(prop.dtype)
+        if bulk.replace_all:
+            self._clear(mesh_id, prop)
+        else:
+            gone = np.concatenate([bulk.ids, bulk.unset]) if bulk.unset is not None else bulk.ids
+            write(mesh_id, table, "delete", _VALUE_KEY, [(prop.id, i) for i in gone.tolist()])
+        columns = {"property": None, **bulk.columns}
+        n = len(columns["id"])
+        if not n:
+            return
+        columns["property"] = np.full(n, prop.id, dtype=np.int64)
+        if prop.dtype == "str" and self._pg:
+            names = tuple(columns)
+            write(mesh_id, table, "insert", names, list(zip(*(columns[c].tolist() for c in names))))
+            return
+        write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, nulls=False)
 
     def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
         self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
@@ -238,7 +353,8 @@ class Persistence:
         def build():
             key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("id")
             if what == "delete":
-                return table.delete().where(*key)
+                match = (table.c[c] == sa.bindparam(c) for c in cols)
+                return table.delete().where(table.c.mesh_id == sa.bindparam("m"), *match)
             if what == "update":
                 return table.update().where(*key).values({c: sa.bindparam(c) for c in cols[1:]})
             return table.insert().values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})

@@ -27,10 +27,14 @@ __all__ = [
     "halfedges",
     "edges",
     "polygons",
+    "properties",
+    "property_reals",
+    "property_integers",
+    "property_texts",
 ]
 
 #: The Alembic revision that creates exactly the tables below.
-SCHEMA_REVISION = "0002"
+SCHEMA_REVISION = "0003"
 
 metadata = sa.MetaData()
 
@@ -49,6 +53,7 @@ meshes = sa.Table(
     sa.Column("next_vertex", _ID, nullable=False),
     sa.Column("next_edge", _ID, nullable=False),
     sa.Column("next_polygon", _ID, nullable=False),
+    sa.Column("next_property", _ID, nullable=False, server_default="0"),
     # Never hand out a deleted mesh's id again (SQLite would reuse the top rowid).
     sqlite_autoincrement=True,
 )
@@ -99,5 +104,47 @@ polygons = sa.Table(
     sqlite_with_rowid=False,
 )
 
-#: Element tables, in the order rows are deleted when a mesh is dropped.
-ELEMENT_TABLES = (polygons, edges, halfedges, vertices)
+# Properties (SPEC §3.2): a catalogue, and the set values in one table per
+# SQL type. A value row holds up to four components of one element's value
+# (``part`` numbers the rows of a longer vector); elements without a row
+# have the property's default. See `hestore.values` for the layout.
+
+properties = sa.Table(
+    "properties",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("id", _ID, primary_key=True),
+    sa.Column("kind", sa.String(16), nullable=False),
+    sa.Column("name", sa.String(255), nullable=False),
+    sa.Column("dtype", sa.String(16), nullable=False),
+    # NULL: one value per element; k: shape (k,).
+    sa.Column("size", sa.Integer, nullable=True),
+    # The default as JSON text; NULL: no default.
+    sa.Column("default_value", sa.Text, nullable=True),
+    sa.UniqueConstraint("mesh_id", "kind", "name", name="uq_properties_name"),
+    sqlite_with_rowid=False,
+)
+
+
+def _value_table(name: str, type_: sa.types.TypeEngine, width: int) -> sa.Table:
+    return sa.Table(
+        name,
+        metadata,
+        sa.Column("mesh_id", sa.Integer, primary_key=True),
+        sa.Column("property", _ID, primary_key=True),
+        sa.Column("id", _ID, primary_key=True),
+        sa.Column("part", sa.Integer, primary_key=True),
+        *(sa.Column(f"v{k}", type_, nullable=True) for k in range(width)),
+        sqlite_with_rowid=False,
+    )
+
+
+property_reals = _value_table("property_reals", sa.Float(53), 4)
+property_integers = _value_table("property_integers", sa.BigInteger(), 4)
+property_texts = _value_table("property_texts", sa.Text(), 1)
+
+#: Value tables of properties.
+VALUE_TABLES = (property_reals, property_integers, property_texts)
+
+#: Tables of a mesh's rows, in the order they are deleted when a mesh is dropped.
+MESH_TABLES = (*VALUE_TABLES, properties, polygons, edges, halfedges, vertices)

@@ -111,6 +111,10 @@ class Snapshot:
         """Columns of several tables of the mesh: `hestore.columns.read_columns`."""
         return read_columns(self._connection, self._mesh_id, requests)
 
+    def rows(self, stmt) -> list[tuple]:
+        """The rows of one Core statement (bound parameters given in it), in this state."""
+        return [tuple(row) for row in self._connection.execute(stmt)]
+
 
 class _TracingCursor:
     """A DBAPI cursor that reports every statement before running it."""
@@ -483,14 +487,29 @@ class Session:
         row = self._persistence.mesh_row(ref.id, lock=False)
         if row is None:
             raise self.missing(ref)
-        return UnitOfWork(ref.id, self._persistence.load, row[:3], bool(row[3]), bool(row[4]))
+        return self._new_uow(ref, row)
 
     def _uow(self, ref: MeshRef) -> UnitOfWork:
         uow = self._uows.get(ref.id)
         if uow is None:
             row = self._lock(ref)
-            uow = self._uows[ref.id] = UnitOfWork(ref.id, self._persistence.load, row[:3], bool(row[3]), bool(row[4]))
+            uow = self._uows[ref.id] = self._new_uow(ref, row)
         return uow
+
+    def _new_uow(self, ref: MeshRef, row: tuple) -> UnitOfWork:
+        p = self._persistence
+        return UnitOfWork(ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]))
+
+    def lock(self, ref: MeshRef) -> None:
+        """Take the mesh's writer lock for the open transaction (before reads that an edit relies on).
+
+        A set-based edit checks its ids against the mesh before staging its
+        write; taking the lock first means nobody can change the mesh in
+        between. Outside a transaction this does nothing: use it in `scope`.
+        """
+        self._alive(ref)
+        if self._scopes:
+            self._uow(ref)
 
     def _lock(self, ref: MeshRef) -> tuple:
         """Lock the mesh for this transaction; return its row's counters and policy."""

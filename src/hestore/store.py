@@ -212,6 +212,7 @@ class Store:
                         next_vertex=0,
                         next_edge=0,
                         next_polygon=0,
+                        next_property=0,
                     )
                     .returning(m.c.id)
                 ).scalar_one()

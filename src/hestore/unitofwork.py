@@ -29,13 +29,17 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
-from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
+from hestore.errors import ElementNotFoundError, InvariantViolationError, InvalidInputError, Violation
+from hestore.values import Property
 
 __all__ = [
     "UnitOfWork",
     "ChangeSet",
     "RowChanges",
     "BulkRows",
+    "PropertyChanges",
+    "BulkValues",
+    "UNSET",
     "GONE",
     "HE_COLUMNS",
     "ORIGIN",
@@ -69,6 +73,8 @@ class _Marker:
 GONE = _Marker("GONE")
 #: Loaded value of an element that is not in the database yet.
 NEW = _Marker("NEW")
+#: A property value written back to "no value" (the default).
+UNSET = _Marker("UNSET")
 _ABSENT = _Marker("ABSENT")
 
 
@@ -95,6 +101,44 @@ class BulkRows(NamedTuple):
     progress: Callable[[int, int], object] | None = None
 
 
+class BulkValues(NamedTuple):
+    """Values of one property for many elements, staged by one set-based call.
+
+    ``columns`` are `hestore.values.columns_of`'s (rows of the elements to
+    set); ``unset`` the ids whose values are removed; ``replace_all``: the
+    ids are every live element of the kind, so every old row goes first.
+    A position write has ``prop`` None and columns ``id, x, y, z``.
+    """
+
+    prop: Property | None
+    ids: Any
+    columns: dict
+    unset: Any
+    replace_all: bool = False
+
+
+class PropertyChanges(NamedTuple):
+    """What a flush writes about properties and positions.
+
+    Applied in this order: ``removed`` properties lose their catalogue row
+    and every value; ``added`` ones are inserted; ``bulk`` writes (in call
+    order); then single ``values`` (``{(property id, element id): (Property,
+    rows or UNSET)}``) and ``positions`` (``[(id, x, y, z)]`` of stored
+    vertices); last ``purge``: the values of elements deleted in this flush,
+    ``[(Property, ids)]``.
+    """
+
+    removed: list
+    added: list
+    bulk: list
+    values: dict
+    positions: list
+    purge: list
+
+    def __bool__(self) -> bool:
+        return any(self)
+
+
 @dataclass(frozen=True)
 class ChangeSet:
     """What one flush writes for one mesh.
@@ -110,7 +154,7 @@ class ChangeSet:
     edges, polygons : RowChanges
         Inserted ``(id, halfedge)``; never updated.
     counters : tuple of int
-        ``(next_vertex, next_edge, next_polygon)`` after the flush.
+        ``(next_vertex, next_edge, next_polygon, next_property)`` after the flush.
     bump : int
         What the mesh's revision grows by: 1 in the first flush of a
         transaction that changes the mesh, else 0.
@@ -118,6 +162,8 @@ class ChangeSet:
         Whole tables of an import.
     drop : bool
         The mesh is deleted with all its rows (nothing else is written).
+    properties : PropertyChanges or None
+        Properties declared and removed, values and positions written.
     """
 
     mesh_id: int
@@ -125,10 +171,11 @@ class ChangeSet:
     halfedges: RowChanges
     edges: RowChanges
     polygons: RowChanges
-    counters: tuple[int, int, int]
+    counters: tuple[int, int, int, int]
     bump: int
     bulk: BulkRows | None = None
     drop: bool = False
+    properties: PropertyChanges | None = None
 
 
 class UnitOfWork:
@@ -141,9 +188,15 @@ class UnitOfWork:
     load : callable
         ``load(mesh_id, want) -> rows``: `hestore.persistence.Persistence.load`.
     counters : tuple of int
-        ``(next_vertex, next_edge, next_polygon)`` as stored.
+        ``(next_vertex, next_edge, next_polygon, next_property)`` as stored.
     allow_loops, allow_multi_edges : bool
         The mesh's policy.
+    catalogue : callable, optional
+        ``catalogue(mesh_id) -> list[Property]``: the declared properties
+        (`hestore.persistence.Persistence.catalogue`), loaded on first need.
+    has_properties : bool
+        Whether the mesh has any property as stored (if not, the catalogue
+        is never loaded for the deletions of a flush).
     """
 
     def __init__(
@@ -153,13 +206,23 @@ class UnitOfWork:
         counters: tuple,
         allow_loops: bool,
         allow_multi_edges: bool,
+        catalogue: Callable[[int], list] | None = None,
+        has_properties: bool = False,
     ) -> None:
         self.mesh_id = mesh_id
         self._load = load
+        self._load_catalogue = catalogue
         self.allow_loops = allow_loops
         self.allow_multi_edges = allow_multi_edges
-        self.next_vertex, self.next_edge, self.next_polygon = counters
+        self.next_vertex, self.next_edge, self.next_polygon, self.next_property = counters
         self._counters0 = tuple(counters)
+        # properties: the catalogue by (kind, name) once loaded; what changed since the last flush
+        self._props: dict[tuple[str, str], Property] | None = None if has_properties else {}
+        self._added: dict[int, Property] = {}
+        self._removed: dict[int, Property] = {}
+        self._vals: dict[tuple[int, int], tuple] = {}
+        self._bulk_vals: list[BulkValues] = []
+        self._pos_set: dict[int, tuple | None] = {}
         # current values / values as in the database (NEW: not there yet)
         self._he: dict[int, Any] = {}
         self._he0: dict[int, Any] = {}
@@ -224,16 +287,28 @@ class UnitOfWork:
             elif kind == "dirty":
                 entry[1].discard(entry[2])
             elif kind == "counters":
-                self.next_vertex, self.next_edge, self.next_polygon = entry[1]
+                self.next_vertex, self.next_edge, self.next_polygon, self.next_property = entry[1]
             elif kind == "bulk":
                 self._bulk = entry[1]
             elif kind == "drop":
                 self._drop = entry[1]
+            elif kind == "attr":
+                setattr(self, entry[1], entry[2])
 
     def _set(self, d: dict, key: int, value: Any) -> None:
         if self._undo is not None:
             self._undo.append(("set", d, key, d.get(key, _ABSENT)))
         d[key] = value
+
+    def _del(self, d: dict, key: Any) -> None:
+        if self._undo is not None:
+            self._undo.append(("set", d, key, d.get(key, _ABSENT)))
+        d.pop(key, None)
+
+    def _set_attr(self, name: str, value: Any) -> None:
+        if self._undo is not None:
+            self._undo.append(("attr", name, getattr(self, name)))
+        setattr(self, name, value)
 
     def _touch(self, dirty: set, key: int) -> None:
         # Undone with the operation too: an aborted operation must leave
@@ -245,7 +320,12 @@ class UnitOfWork:
 
     def _save_counters(self) -> None:
         if self._undo is not None:
-            self._undo.append(("counters", (self.next_vertex, self.next_edge, self.next_polygon)))
+            self._undo.append(("counters", self.counters))
+
+    @property
+    def counters(self) -> tuple[int, int, int, int]:
+        """``(next_vertex, next_edge, next_polygon, next_property)`` now."""
+        return (self.next_vertex, self.next_edge, self.next_polygon, self.next_property)
 
     # -- loading ---------------------------------------------------------
 
@@ -472,6 +552,91 @@ class UnitOfWork:
             self._undo.append(("drop", self._drop))
         self._drop = True
 
+    # -- properties and positions ------------------------------------------
+
+    def exists(self, kind: str, i: int) -> None:
+        """Raise `ElementNotFoundError` unless element ``i`` of ``kind`` exists now."""
+        if kind == "vertex":
+            self.vhe(i)
+        elif kind == "halfedge":
+            self.he(i)
+        elif kind == "edge":
+            self.edge_he(i)
+        else:
+            self.polygon_he(i)
+
+    def catalogue(self) -> dict[tuple[str, str], Property]:
+        """The mesh's properties by ``(kind, name)``, as this transaction sees them."""
+        if self._props is None:
+            self._props = {(p.kind, p.name): p for p in self._load_catalogue(self.mesh_id)}
+        return self._props
+
+    def add_property(self, prop: Property) -> Property:
+        """Declare ``prop`` (its id is allocated here); return it with its id."""
+        catalogue = self.catalogue()
+        if (prop.kind, prop.name) in catalogue:
+            raise InvalidInputError(f"mesh already has a {prop.kind} property named {prop.name!r}")
+        self._save_counters()
+        prop = Property(prop.kind, prop.name, prop.dtype, prop.shape, prop.default, self.next_property)
+        self.next_property += 1
+        self._set(catalogue, (prop.kind, prop.name), prop)
+        self._set(self._added, prop.id, prop)
+        return prop
+
+    def remove_property(self, prop: Property) -> None:
+        """Remove a declared property with all its values."""
+        self._del(self.catalogue(), (prop.kind, prop.name))
+        if prop.id in self._added:
+            self._del(self._added, prop.id)
+        else:
+            self._set(self._removed, prop.id, prop)
+        for key in [key for key in self._vals if key[0] == prop.id]:
+            self._del(self._vals, key)
+        self._set_attr("_bulk_vals", [b for b in self._bulk_vals if b.prop is None or b.prop.id != prop.id])
+
+    def set_value(self, prop: Property, i: int, value_rows: list | _Marker) -> None:
+        """Set element ``i``'s value of ``prop`` to these rows (`hestore.values.rows`), or `UNSET`."""
+        self.exists(prop.kind, i)
+        self._set(self._vals, (prop.id, i), (prop, value_rows))
+
+    def set_position(self, v: int, xyz: tuple | None) -> None:
+        """Move vertex ``v`` (None: no position)."""
+        self.vhe(v)
+        if self._v0.get(v) is NEW:
+            self._set(self._pos, v, xyz)
+        # Written after any bulk write of this flush, so the last call wins.
+        self._set(self._pos_set, v, xyz)
+
+    def stage(self, bulk: BulkValues) -> None:
+        """Stage a set-based write of values (or positions) for the next flush.
+
+        The caller has checked that every id exists. Single writes staged
+        earlier to the same elements are dropped: the bulk write replaces them.
+        """
+        if bulk.prop is None:
+            pending, key_of = self._pos_set, lambda key: key
+        else:
+            pid = bulk.prop.id
+            pending, key_of = self._vals, lambda key: key[1] if key[0] == pid else None
+        if pending:
+            ids = set(bulk.ids.tolist())
+            for key in [key for key in pending if key_of(key) in ids]:
+                self._del(pending, key)
+        self._set_attr("_bulk_vals", self._bulk_vals + [bulk])
+
+    def _property_changes(self, deleted: dict[str, list]) -> PropertyChanges | None:
+        purge = []
+        if any(deleted.values()) and (self._props is None or self._props):
+            for prop in self.catalogue().values():
+                if deleted[prop.kind]:
+                    purge.append((prop, deleted[prop.kind]))
+        positions = [(v, *(xyz or (None, None, None))) for v, xyz in sorted(self._pos_set.items())]
+        changes = PropertyChanges(
+            list(self._removed.values()), list(self._added.values()), list(self._bulk_vals),
+            dict(self._vals), positions, purge,
+        )
+        return changes if changes else None
+
     # -- flushing --------------------------------------------------------
 
     @property
@@ -484,7 +649,8 @@ class UnitOfWork:
         """Whether anything changed since the last flush."""
         return bool(
             self._dirty_he or self._dirty_v or self._dirty_e or self._dirty_p or self._bulk is not None or self._drop
-            or (self.next_vertex, self.next_edge, self.next_polygon) != self._counters0
+            or self._added or self._removed or self._vals or self._bulk_vals or self._pos_set
+            or self.counters != self._counters0
         )
 
     def changes(self, bump: int) -> ChangeSet:
@@ -495,7 +661,7 @@ class UnitOfWork:
         bump : int
             What the mesh's revision grows by (see `ChangeSet.bump`).
         """
-        counters = (self.next_vertex, self.next_edge, self.next_polygon)
+        counters = self.counters
         empty = RowChanges([], [], [])
         if self._drop:
             return ChangeSet(self.mesh_id, empty, empty, empty, empty, counters, bump, drop=True)
@@ -530,7 +696,9 @@ class UnitOfWork:
                 elif cur is GONE:
                     rows.deleted.append(i)
             pairs.append(rows)
-        return ChangeSet(self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self._bulk)
+        deleted = {"vertex": v.deleted, "halfedge": he.deleted, "edge": pairs[0].deleted, "polygon": pairs[1].deleted}
+        properties = self._property_changes(deleted)
+        return ChangeSet(self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self._bulk, properties=properties)
 
     def flushed(self) -> None:
         """Record that the last `changes` are in the database: start the next diff from here."""
@@ -546,4 +714,6 @@ class UnitOfWork:
             dirty.clear()
         self._pos.clear()
         self._bulk = None
-        self._counters0 = (self.next_vertex, self.next_edge, self.next_polygon)
+        self._added, self._removed, self._vals, self._pos_set = {}, {}, {}, {}
+        self._bulk_vals = []
+        self._counters0 = self.counters

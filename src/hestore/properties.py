@@ -1,0 +1,501 @@
+"""Positions and properties of a stored mesh: declaring, reading and writing them.
+
+This module owns the mesh-level algorithms of SPEC §3 "Geometry" and §3.2:
+declaring and removing properties, reading and writing one element's value,
+reading and writing whole columns as numpy arrays, and moving vertices. They
+are free functions of a `hestore.Mesh`; `Mesh` methods and the handles'
+``v["name"]`` delegate here. The value rules and the row layout are
+`hestore.values`'; every write is an edit of the mesh's unit of work
+(`hestore.session.Session.editing`), so it is atomic, transactional, undone
+with its block, counted in the revision, and written by the same flush as
+every other change.
+
+Set-based writes (`set_property_array`, `set_positions`) check everything
+first — dtype, shape, values, duplicate ids, and that every id is a live
+element, against the mesh locked for the transaction — and then stage one
+write that the flush turns into one statement per batch.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import sqlalchemy as sa
+
+from hestore import schema, values
+from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError
+from hestore.unitofwork import UNSET, BulkValues
+from hestore.values import KINDS, Property
+
+if TYPE_CHECKING:  # pragma: no cover
+    from hestore.mesh import Mesh
+
+__all__ = [
+    "add_property",
+    "remove_property",
+    "properties",
+    "value",
+    "set_value",
+    "property_array",
+    "set_property_array",
+    "set_position",
+    "set_positions",
+    "check_position",
+    "element_table",
+]
+
+_TABLE = {"vertex": schema.vertices, "halfedge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
+_WHAT = {"vertex": "vertex", "halfedge": "half-edge", "edge": "edge", "polygon": "polygon"}
+
+
+def element_table(kind: str) -> sa.Table:
+    """The table of an element kind."""
+    return _TABLE[kind]
+
+
+def _kind(kind: object) -> str:
+    if kind not in KINDS:
+        raise InvalidInputError(f"element kinds are {', '.join(KINDS)}, not {kind!r}")
+    return kind  # type: ignore[return-value]
+
+
+def _missing(mesh: "Mesh", kind: str, name: object) -> PropertyNotFoundError:
+    return PropertyNotFoundError(f"mesh {mesh.name!r} has no {kind} property named {name!r}")
+
+
+def _declared(mesh: "Mesh", catalogue: dict, kind: str, name: object) -> Property:
+    prop = catalogue.get((kind, name)) if isinstance(name, str) else None
+    if prop is None:
+        raise _missing(mesh, kind, name)
+    return prop
+
+
+# --------------------------------------------------------------------------
+# Declaring
+
+
+def add_property(
+    mesh: "Mesh", kind: str, name: str, dtype: str, *, shape: tuple = (), default: Any = None
+) -> Property:
+    """Declare a property on every element of a kind, present and future.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    kind : {"vertex", "halfedge", "edge", "polygon"}
+        ``"halfedge"`` properties are per corner: a corner's value lives on
+        the half-edge of the polygon whose origin is that corner.
+    name : str
+        Unique per kind.
+    dtype : {"float64", "int64", "bool", "str"}
+    shape : tuple, default ()
+        ``()`` or ``(k,)`` (``float64`` and ``int64`` only).
+    default : optional
+        The value of every element without one set; None: no default
+        (reads give None, arrays are masked there).
+
+    Returns
+    -------
+    Property
+
+    Raises
+    ------
+    InvalidInputError
+        A bad kind, name, dtype, shape or default, or a name already used
+        for this kind.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> v = mesh.add_vertex((0, 0, 0))
+    >>> mesh.add_property("vertex", "temperature", "float64", default=0.0)
+    Property(kind='vertex', name='temperature', dtype='float64', shape=(), default=0.0)
+    >>> v["temperature"]
+    0.0
+    """
+    kind, name, dtype, shape = values.check_spec(kind, name, dtype, shape)
+    spec = Property(kind, name, dtype, shape, None)
+    default = values.check_value(spec, default, "the default")
+    with mesh.session.editing(mesh.ref) as uow:
+        return uow.add_property(Property(kind, name, dtype, shape, default))
+
+
+def remove_property(mesh: "Mesh", kind: str, name: str) -> None:
+    """Remove a property and all its values.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> _ = mesh.add_property("edge", "weight", "float64")
+    >>> mesh.remove_property("edge", "weight")
+    >>> mesh.properties("edge")
+    {}
+    """
+    kind = _kind(kind)
+    with mesh.session.editing(mesh.ref) as uow:
+        uow.remove_property(_declared(mesh, uow.catalogue(), kind, name))
+
+
+def _build_catalogue(kind: str):
+    def build():
+        p = schema.properties
+        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+        return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind).order_by(p.c.id)
+
+    return build
+
+
+def properties(mesh: "Mesh", kind: str) -> dict[str, Property]:
+    """The properties declared on a kind, by name, in the order they were declared.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> _ = mesh.add_property("halfedge", "uv", "float64", shape=(2,))
+    >>> mesh.properties("halfedge")
+    {'uv': Property(kind='halfedge', name='uv', dtype='float64', shape=(2,), default=None)}
+    """
+    kind = _kind(kind)
+    rows = mesh.session.fetch(mesh.ref, ("catalogue", kind), _build_catalogue(kind), {})
+    found = {row[2]: values.property_of(*row) for row in rows}
+    if not found:
+        mesh.revision  # noqa: B018 - raises MeshNotFoundError for a deleted mesh
+    return found
+
+
+# --------------------------------------------------------------------------
+# One element
+
+
+def _build_lookup(kind: str):
+    def build():
+        p, t = schema.properties, _TABLE[kind]
+        exists = sa.exists().where(t.c.mesh_id == sa.bindparam("m"), t.c.id == sa.bindparam("i"))
+        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value, exists)
+        return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind, p.c.name == sa.bindparam("n"))
+
+    return build
+
+
+def _build_values(table: sa.Table):
+    def build():
+        cols = [table.c.part] + [c for c in table.c if c.name.startswith("v")]
+        return sa.select(*cols).where(
+            table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"), table.c.id == sa.bindparam("i")
+        )
+
+    return build
+
+
+def value(mesh: "Mesh", kind: str, i: int, name: str) -> Any:
+    """Element ``i``'s value of a property: what ``handle[name]`` returns.
+
+    A tuple for shaped properties; the default where none is set (None
+    without a default).
+
+    Raises
+    ------
+    PropertyNotFoundError
+        No such property on this kind.
+    ElementNotFoundError
+        The element does not exist.
+    """
+    session = mesh.session
+    if not isinstance(name, str):
+        raise _missing(mesh, kind, name)
+    found = session.fetch(mesh.ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
+    if not found:
+        raise _missing(mesh, kind, name)
+    *row, exists = found[0]
+    if not exists:
+        raise ElementNotFoundError(f"{_WHAT[kind]} {i} does not exist in mesh {mesh.name!r}")
+    prop = values.property_of(*row)
+    table = values.table_of(prop.dtype)
+    rows = session.fetch(mesh.ref, ("values", table.name), _build_values(table), {"q": prop.id, "i": i})
+    return values.value_of(prop, rows)
+
+
+def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
+    """Set element ``i``'s value of a property (None: unset, back to the default).
+
+    An edit like any other: atomic, transactional, counted in the revision.
+
+    Raises
+    ------
+    PropertyNotFoundError
+        No such property on this kind.
+    ElementNotFoundError
+        The element does not exist.
+    InvalidInputError
+        The value does not fit the property's dtype or shape; the message
+        names the property and the element.
+    """
+    with mesh.session.editing(mesh.ref) as uow:
+        prop = _declared(mesh, uow.catalogue(), kind, name)
+        checked = values.check_value(prop, new, f"{_WHAT[kind]} {i}")
+        uow.set_value(prop, i, UNSET if checked is None else values.rows(prop, checked))
+
+
+# --------------------------------------------------------------------------
+# Whole columns
+
+
+def _null_mask(table: sa.Table, width: int):
+    """An int column whose bit c says that ``v{c}`` is NULL (a NaN float)."""
+    bits = [sa.case((table.c[f"v{c}"].is_(None), 1 << c), else_=0) for c in range(width)]
+    total = bits[0]
+    for b in bits[1:]:
+        total = total + b
+    return total
+
+
+def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
+    """The property, the live ids of its kind and the array of its values, read in one state."""
+    kind = _kind(kind)
+    if not isinstance(name, str):
+        raise _missing(mesh, kind, name)
+    p, t = schema.properties, _TABLE[kind]
+    with mesh.session.snapshot(mesh.ref) as snap:
+        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+        found = snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh.id, p.c.kind == kind, p.c.name == name))
+        if not found:
+            raise _missing(mesh, kind, name)
+        prop = values.property_of(*found[0])
+        table = values.table_of(prop.dtype)
+        mine = [table.c.property == prop.id]
+        if prop.dtype == "str":
+            [[ids]] = snap.columns([(t, [t.c.id])])
+            stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh.id, *mine)
+            rows = snap.rows(stmt.order_by(table.c.id))
+            row_ids = np.array([r[0] for r in rows], dtype=np.int64)
+            row_parts = np.zeros(len(rows), dtype=np.int64)
+            components = [np.array([r[2] for r in rows], dtype=object)]
+        else:
+            width = min(prop.size or 1, values.WIDTH)
+            comps = [sa.func.coalesce(table.c[f"v{c}"], 0) for c in range(width)]
+            if prop.dtype == "float64":
+                comps = [sa.cast(c, sa.Float(53)) for c in comps] + [_null_mask(table, width)]
+            [[ids], [row_ids, row_parts, *components]] = snap.columns(
+                [(t, [t.c.id]), (table, [table.c.id, table.c.part, *comps], mine)]
+            )
+            if prop.dtype == "float64":
+                nulls = components.pop()
+                for c in range(width):
+                    components[c][(nulls >> c) & 1 == 1] = np.nan
+    at = np.searchsorted(ids, row_ids)
+    at[at >= len(ids)] = 0
+    live = len(ids) > 0
+    positions = np.where(live & (ids[at] == row_ids) if live else np.zeros(len(row_ids), bool), at, -1)
+    return prop, ids, values.array_of(prop, len(ids), positions, row_parts, components)
+
+
+def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Every live element's value of a property: ``(ids, values)`` in id order.
+
+    ``values`` has shape ``(n,) + shape`` and the property's dtype (object
+    for ``str``), with the default where nothing is set; a property without
+    a default gives a `numpy.ma.MaskedArray` whose unset entries are masked.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> vs = [mesh.add_vertex() for _ in range(3)]
+    >>> _ = mesh.add_property("vertex", "t", "float64", default=-1.0)
+    >>> vs[1]["t"] = 21.5
+    >>> ids, t = mesh.property_array("vertex", "t")
+    >>> ids.tolist(), t.tolist()
+    ([0, 1, 2], [-1.0, 21.5, -1.0])
+    """
+    _, ids, array = _read(mesh, kind, name)
+    return ids, array
+
+
+def _ids(ids: object, kind: str) -> np.ndarray:
+    """Element ids from an array of ints, checked: 1-D, int64, no duplicates."""
+    what = f"{_WHAT[kind]} ids"
+    if isinstance(ids, (str, bytes, dict, set)) or not hasattr(ids, "__len__"):
+        raise InvalidInputError(f"{what} must be an array of ids or a sequence of handles, not {type(ids).__name__}")
+    try:
+        arr = np.asarray(ids)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{what} must be a 1-D array of integers; these are not") from None
+    if arr.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if arr.ndim != 1 or arr.dtype.kind not in "iu":
+        raise InvalidInputError(f"{what} must be a 1-D array of integers, not {arr.dtype} of shape {arr.shape}")
+    if arr.dtype.kind == "u" and arr.max() > 2**63 - 1:
+        raise ElementNotFoundError(f"there is no {_WHAT[kind]} {int(arr.max())}: ids are 64-bit integers")
+    arr = arr.astype(np.int64)
+    uniq, counts = np.unique(arr, return_counts=True)
+    if (counts > 1).any():
+        raise InvalidInputError(f"{what} must not repeat; {int(uniq[counts > 1][0])} appears more than once")
+    return arr
+
+
+def _live_check(mesh: "Mesh", kind: str, ids: np.ndarray) -> bool:
+    """Raise unless every id is a live element of ``kind``; return whether they are all of them."""
+    t = _TABLE[kind]
+    with mesh.session.snapshot(mesh.ref) as snap:
+        [[live]] = snap.columns([(t, [t.c.id])])
+    at = np.searchsorted(live, ids)
+    ok = at < len(live)
+    ok[ok] = live[at[ok]] == ids[ok]
+    if not ok.all():
+        raise ElementNotFoundError(
+            f"{_WHAT[kind]} {int(ids[~ok][0])} does not exist in mesh {mesh.name!r} "
+            f"({int((~ok).sum())} of the {len(ids)} ids do not)"
+        )
+    return len(ids) == len(live)
+
+
+def set_property_array(mesh: "Mesh", kind: str, name: str, ids: object, new: object) -> None:
+    """Set many elements' values of a property in one set-based write.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    kind, name
+        The property.
+    ids : array_like of int
+        Live elements of ``kind``, each at most once (`hestore.Mesh`
+        also takes handles).
+    new : array_like, shape ``(len(ids),) + shape``
+        Their values. Entries masked in a `numpy.ma.MaskedArray` (or None in
+        a ``str`` array) are unset (back to the default).
+
+    Raises
+    ------
+    PropertyNotFoundError, ElementNotFoundError, InvalidInputError
+        Before anything is written.
+
+    Examples
+    --------
+    >>> import hestore, numpy as np
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> vs = [mesh.add_vertex() for _ in range(4)]
+    >>> _ = mesh.add_property("vertex", "rgb", "int64", shape=(3,), default=(0, 0, 0))
+    >>> mesh.set_property_array("vertex", "rgb", [1, 3], np.array([[255, 0, 0], [0, 0, 255]]))
+    >>> vs[3]["rgb"], vs[0]["rgb"]
+    ((0, 0, 255), (0, 0, 0))
+    """
+    kind = _kind(kind)
+    ids = _ids(ids, kind)
+    session = mesh.session
+    with session.scope():
+        session.lock(mesh.ref)
+        prop = _read_spec(mesh, kind, name)
+        data, unset = values.check_array(prop, new, len(ids))
+        every = _live_check(mesh, kind, ids)
+        keep = slice(None) if unset is None else ~unset
+        columns = values.columns_of(prop, ids[keep], data[keep])
+        gone = None if unset is None else ids[unset]
+        with session.editing(mesh.ref) as uow:
+            current = _declared(mesh, uow.catalogue(), kind, name)
+            uow.stage(BulkValues(current, ids, columns, gone, every and gone is None))
+
+
+def _read_spec(mesh: "Mesh", kind: str, name: object) -> Property:
+    found = properties(mesh, kind).get(name) if isinstance(name, str) else None
+    if found is None:
+        raise _missing(mesh, kind, name)
+    return found
+
+
+# --------------------------------------------------------------------------
+# Positions
+
+
+def check_position(position: object) -> tuple[float, float, float] | None:
+    """A position checked: three finite real numbers as floats, or None.
+
+    Examples
+    --------
+    >>> check_position((1, 2, 3))
+    (1.0, 2.0, 3.0)
+    >>> check_position((0, float("nan"), 0))
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a position is three finite numbers (x, y, z), not (0, nan, 0)
+    """
+    if position is None:
+        return None
+    what = "a position is three finite numbers (x, y, z)"
+    if isinstance(position, (str, bytes, dict, set)) or not hasattr(position, "__iter__"):
+        raise InvalidInputError(f"{what}, not {type(position).__name__} {position!r}")
+    xyz = tuple(position)
+    if len(xyz) != 3:
+        raise InvalidInputError(f"{what}, not {len(xyz)} values: {position!r}")
+    if not all(isinstance(c, numbers.Real) and not isinstance(c, (bool, np.bool_)) for c in xyz):
+        raise InvalidInputError(f"{what}, not {position!r}")
+    xyz = tuple(float(c) for c in xyz)
+    if not all(math.isfinite(c) for c in xyz):
+        raise InvalidInputError(f"{what}, not {position!r}")
+    return xyz  # type: ignore[return-value]
+
+
+def set_position(mesh: "Mesh", v: int, position: object) -> None:
+    """Move vertex ``v`` to ``position`` (None: it has no position).
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> v = mesh.add_vertex()
+    >>> mesh.set_position(v, (1, 2, 3)); v.position
+    (1.0, 2.0, 3.0)
+    """
+    xyz = check_position(position)
+    with mesh.session.editing(mesh.ref) as uow:
+        uow.set_position(v, xyz)
+
+
+def set_positions(mesh: "Mesh", vertices: object, positions: object) -> None:
+    """Move many vertices in one set-based write.
+
+    Parameters
+    ----------
+    vertices : array_like of int
+        Live vertices, each at most once (`hestore.Mesh` also takes handles).
+    positions : array_like, shape (n, 3)
+        Finite coordinates (NaN is an error, not "no position").
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> vs = [mesh.add_vertex() for _ in range(2)]
+    >>> mesh.set_positions(vs, [[0, 0, 0], [1, 0, 0]])
+    >>> vs[1].position
+    (1.0, 0.0, 0.0)
+    """
+    ids = _ids(vertices, "vertex")
+    what = "positions must be an (n, 3) array of finite numbers"
+    if isinstance(positions, (str, bytes, dict, set)) or not hasattr(positions, "__len__"):
+        raise InvalidInputError(f"{what}, not {type(positions).__name__}")
+    try:
+        xyz = np.asarray(positions)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{what}; these are not") from None
+    if xyz.size == 0 and len(ids) == 0:
+        xyz = np.zeros((0, 3))
+    if xyz.dtype.kind not in "iuf" or xyz.shape != (len(ids), 3):
+        raise InvalidInputError(f"{what} matching {len(ids)} vertices, not {xyz.dtype} of shape {xyz.shape}")
+    xyz = xyz.astype(np.float64)
+    bad = ~np.isfinite(xyz).all(axis=1)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise InvalidInputError(f"position of vertex {int(ids[row])} is {xyz[row].tolist()}: {what}")
+    session = mesh.session
+    with session.scope():
+        session.lock(mesh.ref)
+        _live_check(mesh, "vertex", ids)
+        columns = {"id": ids, "x": xyz[:, 0].copy(), "y": xyz[:, 1].copy(), "z": xyz[:, 2].copy()}
+        with session.editing(mesh.ref) as uow:
+            uow.stage(BulkValues(None, ids, columns, None))
