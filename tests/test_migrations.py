@@ -17,8 +17,14 @@ from alembic.migration import MigrationContext
 import hestore
 from hestore import migrate, schema
 
-TABLES = {"meshes", "vertices", "halfedges", "edges", "polygons"}
+TABLES = {
+    "meshes", "vertices", "halfedges", "edges", "polygons",
+    "properties", "property_reals", "property_integers", "property_texts",
+}
 ELEMENT_TABLES = TABLES - {"meshes"}
+#: The tables each revision adds.
+ADDED = {"0001": {"meshes", "vertices", "halfedges", "edges", "polygons"}, "0002": set(),
+         "0003": {"properties", "property_reals", "property_integers", "property_texts"}}
 INDEXES = {"ix_halfedges_origin", "ix_halfedges_polygon"}
 
 
@@ -57,7 +63,7 @@ def test_upgrade_in_steps_then_open(db_url, engine):
         assert migrate.current_revision(conn) is None
         migrate.upgrade(conn, "0001")
         assert migrate.current_revision(conn) == "0001"
-        assert TABLES <= set(sa.inspect(conn).get_table_names())
+        assert set(sa.inspect(conn).get_table_names()) - {"alembic_version"} == ADDED["0001"]
         assert _index_names(conn) == set()
 
         migrate.upgrade(conn)
@@ -145,3 +151,66 @@ def test_current_revision_rejects_a_branched_version_table(engine):
         conn.commit()
         with pytest.raises(hestore.SchemaVersionError, match="several schema revisions"):
             migrate.current_revision(conn)
+
+
+def _store_triangle_by_hand(conn: sa.Connection) -> None:
+    """A one-triangle mesh written with the SQL of revisions 0001 and 0002 (no hestore involved)."""
+    conn.execute(sa.text(
+        "INSERT INTO meshes (name, allow_loops, allow_multi_edges, revision, next_vertex, next_edge, next_polygon) "
+        "VALUES ('old', true, true, 1, 3, 3, 1)"
+    ))
+    mesh_id = conn.execute(sa.text("SELECT id FROM meshes WHERE name = 'old'")).scalar_one()
+    # Half-edges 0, 2, 4 run 0→1→2→0 around polygon 0; 1, 3, 5 are their free twins,
+    # and each vertex's half-edge is its free outgoing one.
+    for v, (x, h) in enumerate([(0.0, 5), (1.0, 1), (0.5, 3)]):
+        conn.execute(sa.text(f"INSERT INTO vertices VALUES ({mesh_id}, {v}, {h}, {x}, 0, 0)"))
+    rows = [(0, 0, 2, 4, 1, 0, 0), (2, 1, 4, 0, 3, 1, 0), (4, 2, 0, 2, 5, 2, 0),
+            (1, 1, 5, 3, 0, 0, None), (3, 2, 1, 5, 2, 1, None), (5, 0, 3, 1, 4, 2, None)]
+    for h, origin, nxt, prev, twin, edge, polygon in rows:
+        poly = "NULL" if polygon is None else polygon
+        conn.execute(sa.text(
+            f"INSERT INTO halfedges VALUES ({mesh_id}, {h}, {origin}, {nxt}, {prev}, {twin}, {edge}, {poly})"
+        ))
+    for e in range(3):
+        conn.execute(sa.text(f"INSERT INTO edges VALUES ({mesh_id}, {e}, {2 * e})"))
+    conn.execute(sa.text(f"INSERT INTO polygons VALUES ({mesh_id}, 0, 0)"))
+    conn.commit()
+
+
+@pytest.mark.parametrize("start", [r for r in migrate.revisions() if r != migrate.head_revision()])
+def test_upgrade_from_every_earlier_revision_keeps_meshes(db_url, engine, start):
+    with engine.connect() as conn:
+        migrate.upgrade(conn, start)
+        _store_triangle_by_hand(conn)
+    with pytest.raises(hestore.SchemaVersionError):
+        hestore.open(db_url)
+    migrate.upgrade_database(db_url)
+    with engine.connect() as conn:
+        assert migrate.current_revision(conn) == migrate.head_revision()
+        assert _differences(conn) == []
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("old")
+        assert mesh.check() == [] and mesh.revision == 1
+        assert mesh.counts() == hestore.Counts(3, 6, 3, 1)
+        assert mesh.vertex(1).position == (1.0, 0.0, 0.0)
+        assert mesh.properties("vertex") == {}
+        mesh.add_property("vertex", "t", "float64", default=0.5)
+        mesh.vertex(2)["t"] = 2.0
+        assert mesh.property_array("vertex", "t")[1].tolist() == [0.5, 0.5, 2.0]
+        assert mesh.add_vertex().id == 3  # the counters survived the upgrade
+
+
+def test_downgrade_from_head_drops_properties_and_keeps_meshes(db_url, engine):
+    with hestore.open(db_url) as store:
+        mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        mesh.add_property("polygon", "label", "str", default="")
+        mesh.polygon(0)["label"] = "kept?"
+    with engine.connect() as conn:
+        migrate.downgrade(conn, "0002")
+        names = set(sa.inspect(conn).get_table_names())
+        assert not ADDED["0003"] & names
+        assert conn.execute(sa.text("SELECT count(*) FROM halfedges")).scalar() == 6
+        migrate.upgrade(conn)
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("t")
+        assert mesh.check() == [] and mesh.properties("polygon") == {}

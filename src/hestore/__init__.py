@@ -29,6 +29,7 @@ from hestore.errors import (
     NonManifoldError,
     NotAChainError,
     PolicyError,
+    PropertyNotFoundError,
     SchemaVersionError,
     StoreBusyError,
     StoreError,
@@ -42,6 +43,7 @@ from hestore.handles import Edge, HalfEdge, Polygon, Vertex
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
 from hestore.summary import Stats
+from hestore.values import Property
 
 __version__ = "0.1.0"
 
@@ -50,6 +52,7 @@ __all__ = [
     "Store",
     "Mesh",
     "Counts",
+    "Property",
     "Stats",
     "Vertex",
     "HalfEdge",
@@ -62,6 +65,7 @@ __all__ = [
     "HestoreError",
     "ElementNotFoundError",
     "MeshNotFoundError",
+    "PropertyNotFoundError",
     "InvalidInputError",
     "MeshExistsError",
     "TopologyError",

@@ -56,6 +56,7 @@ __all__ = [
     "first_per_group",
     "dense",
     "polygon_loops",
+    "polygon_halfedges",
     "positions",
 ]
 
@@ -476,6 +477,54 @@ def dense(ids: np.ndarray) -> tuple[np.ndarray, int]:
     return inverse.astype(I64, copy=False), len(distinct)
 
 
+def polygon_halfedges(he_id: np.ndarray, he_next: np.ndarray, p_halfedge: np.ndarray) -> Ragged:
+    """Each polygon's half-edges, as rows of ``he_id``, walked along ``next`` from its ``halfedge``.
+
+    Parameters
+    ----------
+    he_id : ndarray
+        Sorted half-edge ids.
+    he_next : ndarray
+        The half-edges' ``next`` ids.
+    p_halfedge : ndarray
+        Each polygon's ``halfedge`` id, in polygon order.
+
+    Returns
+    -------
+    Ragged
+        Polygon ``i``'s half-edge rows, starting at ``p_halfedge[i]``'s. All
+        loops are walked together, one numpy step per corner of the largest
+        polygon.
+
+    Examples
+    --------
+    >>> loops = polygon_halfedges(np.array([0, 1, 2, 3]), np.array([2, 3, 0, 1]), np.array([2, 1]))
+    >>> loops.offsets.tolist(), loops.indices.tolist()
+    ([0, 2, 4], [2, 0, 1, 3])
+    """
+    # Rows instead of ids: ids are never reused, so after deletions they have gaps.
+    next_row = np.searchsorted(he_id, he_next)
+    start = np.searchsorted(he_id, p_halfedge)
+    steps_h, steps_p = [], []
+    cur = start.copy()
+    active = np.arange(len(p_halfedge))
+    for _ in range(len(he_id) + 1):
+        if not len(active):
+            break
+        steps_h.append(cur)
+        steps_p.append(active)
+        cur = next_row[cur]
+        going = cur != start[active]
+        active, cur = active[going], cur[going]
+    poly = np.concatenate(steps_p) if steps_p else np.zeros(0, dtype=I64)
+    rows = np.concatenate(steps_h) if steps_h else np.zeros(0, dtype=I64)
+    order = np.argsort(poly, kind="stable")  # steps were appended in loop order
+    counts = np.bincount(poly, minlength=len(p_halfedge))
+    offsets = np.zeros(len(p_halfedge) + 1, dtype=I64)
+    np.cumsum(counts, out=offsets[1:])
+    return Ragged(offsets, rows[order].astype(I64, copy=False))
+
+
 def polygon_loops(
     v_id: np.ndarray, he_id: np.ndarray, he_origin: np.ndarray, he_next: np.ndarray, p_halfedge: np.ndarray
 ) -> Ragged:
@@ -494,31 +543,11 @@ def polygon_loops(
     -------
     Ragged
         Polygon ``i``'s corners as rows of ``v_id``, starting at the origin of
-        ``p_halfedge[i]``. All loops are walked together, one numpy step per
-        corner of the largest polygon.
+        ``p_halfedge[i]`` (see `polygon_halfedges`).
     """
-    # Rows instead of ids: ids are never reused, so after deletions they have gaps.
-    next_row = np.searchsorted(he_id, he_next)
+    loops = polygon_halfedges(he_id, he_next, p_halfedge)
     origin_row = np.searchsorted(v_id, he_origin)
-    start = np.searchsorted(he_id, p_halfedge)
-    steps_v, steps_p = [], []
-    cur = start.copy()
-    active = np.arange(len(p_halfedge))
-    for _ in range(len(he_id) + 1):
-        if not len(active):
-            break
-        steps_v.append(origin_row[cur])
-        steps_p.append(active)
-        cur = next_row[cur]
-        going = cur != start[active]
-        active, cur = active[going], cur[going]
-    poly = np.concatenate(steps_p) if steps_p else np.zeros(0, dtype=I64)
-    verts = np.concatenate(steps_v) if steps_v else np.zeros(0, dtype=I64)
-    order = np.argsort(poly, kind="stable")  # steps were appended in loop order
-    counts = np.bincount(poly, minlength=len(p_halfedge))
-    offsets = np.zeros(len(p_halfedge) + 1, dtype=I64)
-    np.cumsum(counts, out=offsets[1:])
-    return Ragged(offsets, verts[order])
+    return Ragged(loops.offsets, origin_row[loops.indices])
 
 
 def positions(x: np.ndarray, y: np.ndarray, z: np.ndarray, missing: np.ndarray) -> np.ndarray:

@@ -8,6 +8,12 @@ of work (`UnitOfWork.insert_bulk`), whose flush writes them in large batches
 tables back as columns in one snapshot and walk the polygon loops with numpy.
 File formats are `hestore.io`'s.
 
+File data other than positions and polygons travels as properties
+(SPEC §3.2): a file's vertex and polygon properties (PLY) and its corner
+properties (OBJ ``vt``/``vn`` as half-edge ``uv``/``normal``) are declared on
+the new mesh and written by the same flush, set-based; `export` writes back
+what the format can hold.
+
 An import is one transaction: it stores the whole mesh or nothing. With
 ``on_error="raise"`` the first polygon the structure cannot take is reported
 before anything is written; with ``on_error="skip"`` every such polygon is
@@ -25,11 +31,13 @@ import numpy as np
 
 from hestore import build as _build
 from hestore import io as mesh_io
-from hestore import schema
-from hestore.arrays import Ragged, TopologyArrays, polygon_loops, positions as position_array, ragged
+from hestore import properties as props
+from hestore import schema, values
+from hestore.arrays import Ragged, TopologyArrays, polygon_halfedges, positions as position_array, ragged
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, MeshExistsError
-from hestore.unitofwork import BulkRows
+from hestore.unitofwork import BulkRows, BulkValues
+from hestore.values import Property
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -213,8 +221,56 @@ def _check_name(store: "Store", name: str) -> None:
         raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
 
 
+class FileData(NamedTuple):
+    """Per-element data of a file, keyed by property name: `hestore.io.PolygonSoup`'s."""
+
+    vertex: dict
+    polygon: dict
+    corner: dict
+
+
+def _spec(kind: str, name: str, array: np.ndarray, source: str | None) -> Property:
+    """The property a file's column becomes: integers as int64, floats as float64."""
+    dtype = {"f": "float64", "i": "int64", "u": "int64", "b": "bool"}.get(array.dtype.kind)
+    if dtype is None or array.ndim not in (1, 2):
+        raise InvalidInputError(f"{source or 'input'}: {kind} data {name!r} is not a column of numbers")
+    shape = () if array.ndim == 1 else (int(array.shape[1]),)
+    try:
+        kind, name, dtype, shape = values.check_spec(kind, name, dtype, shape)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{source or 'input'}: {exc}") from None
+    return Property(kind, name, dtype, shape, None)
+
+
+def _file_properties(data: FileData, built, soup: Ragged, source: str | None) -> list[tuple]:
+    """``(Property, ids, values)`` of every column of ``data``, for the elements the import keeps.
+
+    Polygon values follow the kept polygons; corner values go to the
+    half-edge leaving each kept corner, and a corner whose values are all NaN
+    (no ``vt``/``vn`` reference) gets none.
+    """
+    out = []
+    a = built.arrays
+    for name, column in data.vertex.items():
+        out.append((_spec("vertex", name, column, source), a.v_id, column))
+    for name, column in data.polygon.items():
+        out.append((_spec("polygon", name, column, source), a.p_id, column[built.accepted]))
+    if data.corner:
+        kept = np.zeros(len(soup.offsets) - 1, dtype=bool)
+        kept[built.accepted] = True
+        corner_kept = np.repeat(kept, np.diff(soup.offsets))
+        halfedges = a.he_id[polygon_halfedges(a.he_id, a.he_next, a.p_halfedge).indices]
+        for name, column in data.corner.items():
+            column = column[corner_kept]
+            valid = ~np.isnan(column.reshape(len(column), -1)).all(axis=1) if column.dtype.kind == "f" else None
+            ids = halfedges if valid is None else halfedges[valid]
+            out.append((_spec("halfedge", name, column, source), ids, column if valid is None else column[valid]))
+    return out
+
+
 def _import(
-    store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *, lines=None, source=None, index_base=0
+    store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *,
+    lines=None, source=None, index_base=0, data: FileData | None = None,
 ):
     """Decide, then write: nothing is stored unless every check has passed."""
     if progress is not None:
@@ -231,11 +287,12 @@ def _import(
         exc = error(f"{prefix}{first}; nothing was stored (on_error='skip' would leave it out)")
         exc.skipped = first
         raise exc
-    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress)
+    columns = _file_properties(data, built, soup, source) if data is not None else []
+    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns)
     return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source)
 
 
-def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress) -> "Mesh":
+def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=()) -> "Mesh":
     """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block)."""
     tables = {
         "vertices": {"id": a.v_id, "halfedge": a.v_halfedge, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]},
@@ -257,6 +314,9 @@ def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, 
         mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges)
         with session.editing(mesh.ref) as uow:
             uow.insert_bulk(BulkRows(tables, report), counters)
+            for spec, ids, data in columns:
+                prop = uow.add_property(spec)
+                uow.stage(BulkValues(prop, ids, values.columns_of(prop, ids, data), None, replace_all=True))
     if outer:
         # Fresh statistics, so the planner knows how large the tables just became.
         session.analyze([schema.metadata.tables[t] for t in tables])
@@ -334,17 +394,23 @@ def import_file(
         lines=soup.lines,
         source=path,
         index_base=1 if kind == "obj" else 0,  # OBJ counts vertices from 1; say so in messages
+        data=FileData(soup.vertex_properties, soup.polygon_properties, soup.corner_properties),
     )
 
 
-def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray]:
-    """Positions, polygon loops (as rows) and vertex ids, read in one snapshot (a block's own edits included)."""
+def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
+    """Positions, polygon loops (as rows), vertex ids and each corner's half-edge id, read in one snapshot.
+
+    A block's own edits are included.
+    """
     h, p = schema.halfedges, schema.polygons
     with mesh.session.snapshot(mesh.ref) as snap:
         (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_next), (_p_id, p_he) = snap.columns(
             [position_request(), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])]
         )
-    return position_array(vx, vy, vz, v_missing), polygon_loops(v_id, h_id, h_origin, h_next, p_he), v_id
+    loops = polygon_halfedges(h_id, h_next, p_he)
+    corners = Ragged(loops.offsets, np.searchsorted(v_id, h_origin[loops.indices]))
+    return position_array(vx, vy, vz, v_missing), corners, v_id, h_id[loops.indices]
 
 
 def to_arrays(mesh: "Mesh") -> MeshArrays:
@@ -368,7 +434,7 @@ def to_arrays(mesh: "Mesh") -> MeshArrays:
     >>> arrays.polygons.tolist(), arrays.vertex_ids.tolist(), arrays.positions.shape
     ([[0, 1, 2, 3]], [0, 1, 2, 3], (4, 3))
     """
-    positions, soup, vertex_ids = _soup(mesh)
+    positions, soup, vertex_ids, _ = _soup(mesh)
     counts = np.diff(soup.offsets)
     if len(counts) and (counts == counts[0]).all():
         polygons = soup.indices.reshape(len(counts), int(counts[0]))
@@ -405,7 +471,9 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     mesh_io.format_of(path)
     if progress is not None:
         progress("read", 0, 1)
-    positions, soup, vertex_ids = _soup(mesh)
+    with mesh.session.snapshot(mesh.ref):  # one state for the topology and every property read
+        positions, soup, vertex_ids, corner_halfedges = _soup(mesh)
+        data = _export_data(mesh, mesh_io.format_of(path), corner_halfedges)
     if progress is not None:
         progress("read", 1, 1)
     unplaced = np.isnan(positions).any(axis=1)
@@ -417,4 +485,34 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     write_progress = None
     if progress is not None:
         write_progress = lambda done, total: progress("write", done, total)  # noqa: E731
-    mesh_io.write(path, positions, soup.offsets, soup.indices, binary=binary, progress=write_progress)
+    mesh_io.write(
+        path, positions, soup.offsets, soup.indices, binary=binary, progress=write_progress,
+        vertex_properties=data.vertex, polygon_properties=data.polygon, corner_properties=data.corner,
+    )
+
+
+def _filled(array: np.ndarray) -> np.ndarray:
+    """A property array for a file: unset entries (masked) as NaN, or 0 for integers and booleans."""
+    if not isinstance(array, np.ma.MaskedArray):
+        return np.asarray(array)
+    return array.filled(np.nan if array.dtype.kind == "f" else 0)
+
+
+def _export_data(mesh: "Mesh", fmt: str, corner_halfedges: np.ndarray) -> FileData:
+    """The properties a format can hold: PLY vertex and polygon numbers, OBJ corner ``uv`` and ``normal``."""
+    data = FileData({}, {}, {})
+    if fmt == "ply":
+        for kind, out in (("vertex", data.vertex), ("polygon", data.polygon)):
+            for name, prop in props.properties(mesh, kind).items():
+                if prop.dtype != "str":
+                    out[name] = _filled(props.property_array(mesh, kind, name)[1])
+    elif fmt == "obj":
+        found = props.properties(mesh, "halfedge")
+        for name, width in (("uv", 2), ("normal", 3)):
+            prop = found.get(name)
+            if prop is None or prop.dtype != "float64" or prop.shape != (width,):
+                continue
+            ids, array = props.property_array(mesh, "halfedge", name)
+            at = np.searchsorted(ids, corner_halfedges)
+            data.corner[name] = _filled(array)[at] if len(ids) else np.full((0, width), np.nan)
+    return data

@@ -18,6 +18,8 @@ from typing import Any, Callable
 
 import numpy as np
 import sqlalchemy as sa
+from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+from sqlalchemy.schema import CreateTable
 
 from hestore import schema
 from hestore.columns import write_columns
@@ -106,7 +108,8 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
         t = table.c[c].type
         return "double precision" if isinstance(t, sa.Float) else "text" if isinstance(t, sa.String) else "bigint"
 
-    arrays = ", ".join(f"%s::{sql_type(c)}[]" for c in cols)
+    # %b: psycopg sends the arrays in binary, without formatting every element as text.
+    arrays = ", ".join(f"%b::{sql_type(c)}[]" for c in cols)
     name = q(table.name)
     if what == "delete":
         match = " AND ".join(f"t.{q(c)} = u.{q(c)}" for c in cols)
@@ -114,15 +117,23 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
             f"DELETE FROM {name} AS t USING unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
             f"WHERE t.{q('mesh_id')} = %s AND {match}"
         )
-    if what == "insert":
+    if what in ("insert", "upsert"):
         columns = ", ".join(q(c) for c in ("mesh_id",) + tuple(cols))
-        return f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
+        sql = f"INSERT INTO {name} ({columns}) SELECT %s, * FROM unnest({arrays})"
+        if what == "upsert":
+            key = [c.name for c in table.primary_key]
+            sets = ", ".join(f"{q(c)} = excluded.{q(c)}" for c in cols if c not in key)
+            sql += f" ON CONFLICT ({', '.join(q(c) for c in key)}) DO UPDATE SET {sets}"
+        return sql
     sets = ", ".join(f"{q(c)} = u.{q(c)}" for c in cols[1:])
     return (
         f"UPDATE {name} AS t SET {sets} FROM unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
         f"WHERE t.{q('mesh_id')} = %s AND t.{q('id')} = u.{q('id')}"
     )
 
+
+#: Rows from which a PostgreSQL bulk update goes through a scratch table.
+_STAGE_ROWS = 20_000
 
 _VERTEX_INSERT = ("id", "halfedge", "x", "y", "z")
 _POSITION = ("id", "x", "y", "z")
@@ -238,7 +249,7 @@ class Persistence:
             self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), mesh_id)
             return
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-        write = self._write_pg if self._pg else self._write_many
+        write = self._write
         for table, rows in ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons)):
             write(mesh_id, table, "delete", ("id",), [(i,) for i in rows.deleted])
         write(mesh_id, v, "insert", _VERTEX_INSERT, changes.vertices.inserted)
@@ -269,7 +280,7 @@ class Persistence:
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
         """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
-        write = self._write_pg if self._pg else self._write_many
+        write = self._write
         v, catalogue = schema.vertices, schema.properties
         for prop in pc.removed:
             self._clear(mesh_id, prop)
@@ -277,18 +288,20 @@ class Persistence:
         write(mesh_id, catalogue, "insert", _CATALOGUE, [_catalogue_row(p) for p in pc.added])
         for bulk in pc.bulk:
             self._write_bulk_values(mesh_id, bulk)
-        deletes: dict = {}
-        inserts: dict = {}
+        unset: dict = {}
+        upserts: dict = {}
         for (pid, i), (prop, rows) in pc.values.items():
             table = table_of(prop.dtype)
-            deletes.setdefault(table, []).append((pid, i))
-            if rows is not UNSET:
-                pad = (None,) * (len(table.c) - 4)
-                inserts.setdefault(table, []).extend((pid, i, *(row + pad)[: len(table.c) - 3]) for row in rows)
-        for table, keys in deletes.items():
+            if rows is UNSET:
+                unset.setdefault(table, []).append((pid, i))
+            else:
+                # An element's value always has the same number of rows: an upsert replaces it.
+                width = len(table.c) - 4
+                upserts.setdefault(table, []).extend((pid, i, *(row + (None,) * width)[: width + 1]) for row in rows)
+        for table, keys in unset.items():
             write(mesh_id, table, "delete", _VALUE_KEY, keys)
-        for table, rows in inserts.items():
-            write(mesh_id, table, "insert", _value_columns(table), rows)
+        for table, rows in upserts.items():
+            write(mesh_id, table, "upsert", _value_columns(table), rows)
         write(mesh_id, v, "update", _POSITION, pc.positions)
         # Purged after the writes: values set in this flush on elements it deletes go too.
         purge: dict = {}
@@ -308,11 +321,13 @@ class Persistence:
 
     def _write_bulk_values(self, mesh_id: int, bulk: BulkValues) -> None:
         """One set-based write of many elements' values (or positions)."""
-        write = self._write_pg if self._pg else self._write_many
+        columns = bulk.columns
         if bulk.prop is None:
-            cols = bulk.columns
-            rows = list(zip(*(cols[c].tolist() for c in _POSITION)))
-            write(mesh_id, schema.vertices, "update", _POSITION, rows)
+            if self._pg and len(bulk.ids) >= _STAGE_ROWS:
+                self._update_positions_staged(mesh_id, columns)
+            else:
+                cols = [columns[c].tolist() for c in _POSITION]
+                self._write_columns(mesh_id, schema.vertices, "update", _POSITION, cols)
             return
         prop = bulk.prop
         table = table_of(prop.dtype)
@@ -320,17 +335,41 @@ class Persistence:
             self._clear(mesh_id, prop)
         else:
             gone = np.concatenate([bulk.ids, bulk.unset]) if bulk.unset is not None else bulk.ids
-            write(mesh_id, table, "delete", _VALUE_KEY, [(prop.id, i) for i in gone.tolist()])
-        columns = {"property": None, **bulk.columns}
+            self._write_columns(mesh_id, table, "delete", _VALUE_KEY, [[prop.id] * len(gone), gone.tolist()])
         n = len(columns["id"])
         if not n:
             return
-        columns["property"] = np.full(n, prop.id, dtype=np.int64)
+        columns = {"property": np.full(n, prop.id, dtype=np.int64), **columns}
         if prop.dtype == "str" and self._pg:
+            # Binary COPY has no text layout here: one INSERT over unnest-ed arrays instead.
             names = tuple(columns)
-            write(mesh_id, table, "insert", names, list(zip(*(columns[c].tolist() for c in names))))
+            self._write_columns(mesh_id, table, "insert", names, [list(columns[c]) for c in names])
             return
         write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, nulls=False)
+
+    def _update_positions_staged(self, mesh_id: int, columns: dict) -> None:
+        """Many positions on PostgreSQL: binary COPY into a scratch table, then one ``UPDATE ... FROM``.
+
+        An ``UPDATE`` over ``unnest``-ed arrays of a million elements is
+        planned as a million index probes; a join with a table the planner
+        can size is a hash join.
+        """
+        staging, v = schema.position_updates, schema.vertices
+        cursor = self.cursor()
+        dialect = self.st.dialect
+        cursor.execute(str(CreateTable(staging, if_not_exists=True).compile(dialect=dialect)))
+        write_columns(cursor, dialect, staging, mesh_id, {c: columns[c] for c in _POSITION})
+
+        def build():
+            s = staging
+            return (
+                v.update()
+                .where(v.c.mesh_id == s.c.mesh_id, v.c.id == s.c.id)
+                .values(x=s.c.x, y=s.c.y, z=s.c.z)
+            )
+
+        self.st.get("update_positions_staged", build).run(cursor, {})
+        cursor.execute(f"TRUNCATE {staging.name}")
 
     def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
         self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
@@ -346,28 +385,36 @@ class Persistence:
             write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, progress=report)
             done += len(columns["id"])
 
-    def _write_many(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
-        if not rows:
+    def _write(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
+        """Insert, update (by id, the first column) or delete (matching every column) rows of ``table``."""
+        if rows:
+            self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)])
+
+    def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
+        """`_write` for rows given as one list per column: one statement."""
+        if not columns or not len(columns[0]):
+            return
+        if self._pg:
+            sql = self._pg_sql.get((what, table.name, cols))
+            if sql is None:
+                sql = self._pg_sql[(what, table.name, cols)] = _pg_statement(table, what, cols)
+            self.cursor().execute(sql, [mesh_id, *columns] if what in ("insert", "upsert") else [*columns, mesh_id])
             return
 
         def build():
-            key = table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("id")
+            m = table.c.mesh_id == sa.bindparam("m")
             if what == "delete":
-                match = (table.c[c] == sa.bindparam(c) for c in cols)
-                return table.delete().where(table.c.mesh_id == sa.bindparam("m"), *match)
+                return table.delete().where(m, *(table.c[c] == sa.bindparam(c) for c in cols))
             if what == "update":
-                return table.update().where(*key).values({c: sa.bindparam(c) for c in cols[1:]})
-            return table.insert().values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
+                key = table.c.id == sa.bindparam("id")
+                return table.update().where(m, key).values({c: sa.bindparam(c) for c in cols[1:]})
+            insert = sqlite_insert(table).values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
+            if what == "upsert":
+                key = [c.name for c in table.primary_key]
+                insert = insert.on_conflict_do_update(
+                    index_elements=key, set_={c: insert.excluded[c] for c in cols if c not in key}
+                )
+            return insert
 
         stmt = self.st.get((what, table.name, cols), build)
-        stmt.run_many(self.cursor(), ({"m": mesh_id, **dict(zip(cols, row))} for row in rows))
-
-    def _write_pg(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
-        if not rows:
-            return
-        sql = self._pg_sql.get((what, table.name, cols))
-        if sql is None:
-            sql = self._pg_sql[(what, table.name, cols)] = _pg_statement(table, what, cols)
-        arrays = [list(column) for column in zip(*rows)]
-        self.cursor().execute(sql, [mesh_id, *arrays] if what == "insert" else [*arrays, mesh_id])
-
+        stmt.run_columns(self.cursor(), {"m": mesh_id}, dict(zip(cols, columns)))

@@ -246,15 +246,6 @@ def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
 # Whole columns
 
 
-def _null_mask(table: sa.Table, width: int):
-    """An int column whose bit c says that ``v{c}`` is NULL (a NaN float)."""
-    bits = [sa.case((table.c[f"v{c}"].is_(None), 1 << c), else_=0) for c in range(width)]
-    total = bits[0]
-    for b in bits[1:]:
-        total = total + b
-    return total
-
-
 def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
     """The property, the live ids of its kind and the array of its values, read in one state."""
     kind = _kind(kind)
@@ -277,17 +268,27 @@ def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any
             row_parts = np.zeros(len(rows), dtype=np.int64)
             components = [np.array([r[2] for r in rows], dtype=object)]
         else:
+            # Only what is needed: `part` for values of several rows, NULL flags
+            # for floats on SQLite (which stores NaN as NULL and cannot write NaN
+            # in SQL; PostgreSQL reads NULL as NaN with coalesce).
             width = min(prop.size or 1, values.WIDTH)
-            comps = [sa.func.coalesce(table.c[f"v{c}"], 0) for c in range(width)]
-            if prop.dtype == "float64":
-                comps = [sa.cast(c, sa.Float(53)) for c in comps] + [_null_mask(table, width)]
-            [[ids], [row_ids, row_parts, *components]] = snap.columns(
-                [(t, [t.c.id]), (table, [table.c.id, table.c.part, *comps], mine)]
-            )
-            if prop.dtype == "float64":
-                nulls = components.pop()
-                for c in range(width):
-                    components[c][(nulls >> c) & 1 == 1] = np.nan
+            several = values.parts(prop) > 1
+            comps, flags = [], []
+            for c in range(width):
+                column = table.c[f"v{c}"]
+                if prop.dtype != "float64":
+                    comps.append(sa.func.coalesce(column, 0))
+                elif mesh.session.is_sqlite:
+                    comps.append(sa.func.coalesce(column, 0.0))
+                    flags.append(sa.type_coerce(column.is_(None), sa.Integer))
+                else:
+                    comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
+            head = [table.c.id, table.c.part] if several else [table.c.id]
+            [[ids], [row_ids, *rest]] = snap.columns([(t, [t.c.id]), (table, [*head, *comps, *flags], mine)])
+            row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
+            components = rest[:width]
+            for column, null in zip(components, rest[width:]):
+                column[null == 1] = np.nan
     at = np.searchsorted(ids, row_ids)
     at[at >= len(ids)] = 0
     live = len(ids) > 0

@@ -148,3 +148,23 @@ VALUE_TABLES = (property_reals, property_integers, property_texts)
 
 #: Tables of a mesh's rows, in the order they are deleted when a mesh is dropped.
 MESH_TABLES = (*VALUE_TABLES, properties, polygons, edges, halfedges, vertices)
+
+
+# Scratch tables: temporary, one per connection, emptied at commit, and not
+# part of the stored schema (a separate MetaData, so neither migrations nor
+# checks of the schema see them). PostgreSQL updates many rows fastest as a
+# join with a table filled by binary COPY.
+
+scratch = sa.MetaData()
+
+position_updates = sa.Table(
+    "hestore_position_updates",
+    scratch,
+    sa.Column("mesh_id", sa.Integer, nullable=False),
+    sa.Column("id", _ID, nullable=False),
+    sa.Column("x", sa.Float(53), nullable=False),
+    sa.Column("y", sa.Float(53), nullable=False),
+    sa.Column("z", sa.Float(53), nullable=False),
+    prefixes=["TEMPORARY"],
+    postgresql_on_commit="DELETE ROWS",
+)

@@ -13,8 +13,9 @@ variants serve every call.
 
 from __future__ import annotations
 
+import itertools
 import operator
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Sequence
 
 import sqlalchemy as sa
 
@@ -61,7 +62,7 @@ class Prepared:
         The dialect to compile for.
     """
 
-    __slots__ = ("sql", "bind", "_pick", "_fixed")
+    __slots__ = ("sql", "bind", "order", "_pick", "_fixed")
 
     def __init__(self, stmt: Any, dialect: sa.engine.Dialect) -> None:
         compiled = _compiler_for(dialect)(dialect, stmt)
@@ -69,6 +70,8 @@ class Prepared:
         # Positional drivers (sqlite3's qmark) need the parameters in the
         # order they appear; named ones (psycopg's pyformat) take the dict.
         order = tuple(compiled.positiontup) if dialect.positional else None
+        #: Parameter names in the order a positional driver takes them (None: named parameters).
+        self.order = order
         if order is None:
             self._pick = None
         elif len(order) == 1:
@@ -98,6 +101,20 @@ class Prepared:
     def run(self, cursor: Any, values: dict[str, Any]) -> None:
         """Execute with ``values``, discarding any result."""
         cursor.execute(self.sql, self.params(values))
+
+    def run_columns(self, cursor: Any, fixed: dict[str, Any], columns: dict[str, Sequence]) -> None:
+        """Execute once per row of equal-length ``columns``, in one driver call; ``fixed`` values repeat.
+
+        No dict is built per row for positional drivers: the parameter tuples
+        are zipped straight from the columns.
+        """
+        values = {**self._fixed, **fixed}
+        if self.order is None:
+            names = list(columns)
+            seq: Iterable = ({**values, **dict(zip(names, row))} for row in zip(*columns.values()))
+        else:
+            seq = zip(*(columns[n] if n in columns else itertools.repeat(values[n]) for n in self.order))
+        cursor.executemany(self.sql, seq)
 
     def run_many(self, cursor: Any, seq: Iterable[dict[str, Any]]) -> None:
         """Execute once per parameter set, in one driver call."""

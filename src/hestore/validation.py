@@ -37,6 +37,8 @@ Invariant codes, in report order:
                 ``v.halfedge``
 ``REF``         every reference names an existing element of the mesh
 ``POLICY``      no self-loop / parallel edge where the mesh forbids them
+``PROPERTY_REF`` every property value row belongs to a declared property
+                and an existing element of its kind (stored meshes only)
 ==============  ==============================================================
 
 Examples
@@ -103,6 +105,7 @@ CODES: tuple[str, ...] = (
     "V_BOUNDARY",
     "REF",
     "POLICY",
+    "PROPERTY_REF",
 )
 
 #: One line per invariant code: what it requires.
@@ -118,7 +121,11 @@ CODE_DESCRIPTIONS: dict[str, str] = {
     "V_BOUNDARY": "if v has a free outgoing half-edge, v.halfedge is free",
     "REF": "every reference points at an existing element of the same mesh",
     "POLICY": "no loop / parallel edge in a mesh whose policy forbids them",
+    "PROPERTY_REF": "every property value row belongs to a declared property and an existing element of its kind",
 }
+
+#: The codes `check_arrays` checks: all but those about stored property rows.
+_ARRAY_CODES = CODES[:-1]
 
 #: Element kinds a `Violation` can be about, in report order for equal ids.
 KINDS: tuple[str, ...] = ("halfedge", "vertex", "edge", "polygon")
@@ -822,7 +829,7 @@ def check_arrays(
             raise InvalidInputError(f"limit must be None or >= 0, got {limit}")
     checker = _Checker(_normalized(arrays), bool(allow_loops), bool(allow_multi_edges))
     result: list[Violation] = []
-    for code in CODES:
+    for code in _ARRAY_CODES:
         room = None if limit is None else limit - len(result)
         if room == 0:
             break
@@ -862,5 +869,36 @@ def check(mesh: "Mesh") -> list[Violation]:
     >>> store.close()
     """
     with mesh.session.snapshot(mesh.ref) as snap:
-        tables = snap.columns(_REQUESTS)
-    return check_arrays(_arrays(tables), allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
+        arrays = _arrays(snap.columns(_REQUESTS))
+        found = check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
+        return found + _property_violations(snap, mesh.id, arrays)
+
+
+def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violation]:
+    """``PROPERTY_REF``: value rows of undeclared properties or of elements that do not exist."""
+    p = schema.properties
+    catalogue = {pid: (kind, name) for pid, kind, name in snap.rows(
+        sa.select(p.c.id, p.c.kind, p.c.name).where(p.c.mesh_id == mesh_id)
+    )}
+    live = {"vertex": a.v_id, "halfedge": a.he_id, "edge": a.e_id, "polygon": a.p_id}
+    tables = schema.VALUE_TABLES
+    columns = snap.columns([(t, [t.c.id, t.c.property], [t.c.part == 0]) for t in tables])
+    out = []
+    for ids, props in columns:
+        for pid in np.unique(props).tolist():
+            rows = ids[props == pid]
+            if pid not in catalogue:
+                out.extend(
+                    Violation("PROPERTY_REF", "property", (pid, i), f"a value row of element {i} belongs to "
+                              f"property {pid}, which is not declared")
+                    for i in rows[:100].tolist()
+                )
+                continue
+            kind, name = catalogue[pid]
+            dangling = rows[~np.isin(rows, live[kind])]
+            out.extend(
+                Violation("PROPERTY_REF", kind, (i, pid), f"property {name!r} has a value for {kind} {i}, "
+                          "which does not exist")
+                for i in dangling[:100].tolist()
+            )
+    return sorted(out, key=lambda v: (v.kind, v.ids))
