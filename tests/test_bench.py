@@ -26,6 +26,7 @@ OWN_HEADER = {
     "import": "Floors, every variant measured",
     "graph": "Graph floors, every variant",
     "reads": "The floor's query plan",
+    "properties": "Floor variants, every one measured",
 }
 
 
