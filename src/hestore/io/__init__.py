@@ -17,6 +17,26 @@ came from: the builder names that line when it rejects the polygon.
   three vertices) are kept for the builder to judge;
 * positions are float64; a 2-D position (no z) gets z = 0.
 
+Beyond positions and polygons, each format keeps some per-element data, as
+the property dicts of `PolygonSoup` (arrays by name, float64 or int64):
+
+========  ======================================  ====================================
+format    read                                    written by `write`
+========  ======================================  ====================================
+PLY       every scalar vertex property but x, y,  ``vertex_properties`` and
+          z (``vertex_properties``) and every     ``polygon_properties``; an (n, k)
+          scalar face property but the index      array as k properties
+          list (``polygon_properties``)           ``{name}_0`` .. ``{name}_{k-1}``
+OBJ       ``vt`` and ``vn`` referred to by faces  ``corner_properties["uv"]`` and
+          (``corner_properties["uv"]`` and        ``["normal"]``
+          ``["normal"]``)
+OFF       nothing (colours are skipped)           nothing
+========  ======================================  ====================================
+
+`write` passes each format what it can hold and ignores the rest. Texture
+coordinates and normals are per corner (one row per entry of
+`PolygonSoup.indices`, NaN where a corner has none), as OBJ refers to them.
+
 The modules:
 
 `hestore.io.off`, `hestore.io.obj`, `hestore.io.ply`
@@ -62,6 +82,7 @@ array([3, 2, 1, 0])
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 
 from hestore.errors import InvalidInputError
 from hestore.io.common import PolygonSoup, Progress
@@ -168,13 +189,18 @@ def write(
     *,
     binary: bool = True,
     progress: Progress | None = None,
+    vertex_properties: Mapping | None = None,
+    polygon_properties: Mapping | None = None,
+    corner_properties: Mapping | None = None,
 ) -> None:
-    """Write vertex positions and polygons as an OFF, OBJ or PLY file.
+    """Write vertex positions, polygons and the per-element data the format holds as an OFF, OBJ or PLY file.
 
     The format comes from the extension. OFF and OBJ are text; PLY is
-    binary little endian unless ``binary=False``. Positions are written as
-    doubles — in text, in their shortest round-trip form — so reading the
-    file back gives exactly the same arrays.
+    binary little endian unless ``binary=False``. Positions (and float
+    properties) are written as doubles — in text, in their shortest
+    round-trip form — so reading the file back gives exactly the same
+    arrays. PLY keeps the vertex and polygon properties, OBJ the corner
+    properties ``"uv"`` and ``"normal"``, OFF none; the rest are ignored.
 
     Parameters
     ----------
@@ -192,12 +218,20 @@ def write(
     progress : callable, optional
         Called as ``progress(done, total)`` now and then, counting vertices
         and polygons written, and at least once at the end.
+    vertex_properties, polygon_properties : mapping of str to array_like, optional
+        PLY only: per-vertex (per-polygon) data, arrays of shape ``(V,)`` or
+        ``(V, k)`` (``(F,)`` or ``(F, k)``); see `hestore.io.ply.write_ply`.
+    corner_properties : mapping of str to array_like, optional
+        OBJ only: ``"uv"`` of shape ``(len(indices), 2)`` and ``"normal"`` of
+        shape ``(len(indices), 3)``, NaN rows for corners without; see
+        `hestore.io.obj.write_obj`.
 
     Raises
     ------
     InvalidInputError
-        Unsupported extension, or arrays that do not describe polygons on
-        these vertices. Nothing is written then.
+        Unsupported extension, arrays that do not describe polygons on
+        these vertices, or properties the format would hold but that are
+        malformed. Nothing is written then.
 
     Examples
     --------
@@ -211,6 +245,10 @@ def write(
     v 1.0 1.0 0.0
     v 0.0 1.0 0.1
     f 1 2 3 4
+    >>> ply = path.with_suffix(".ply")
+    >>> write(ply, [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [0, 3], [0, 1, 2], vertex_properties={"red": [255, 0, 0]})
+    >>> read(ply).vertex_properties
+    {'red': array([255,   0,   0])}
     >>> write(path.with_suffix(".ply"), [(0, 0, 0)], [0, 1], [1])
     Traceback (most recent call last):
     ...
@@ -219,6 +257,17 @@ def write(
     """
     fmt = format_of(path)
     if fmt == "ply":
-        write_ply(path, positions, offsets, indices, binary=binary, progress=progress)
+        write_ply(
+            path,
+            positions,
+            offsets,
+            indices,
+            binary=binary,
+            progress=progress,
+            vertex_properties=vertex_properties,
+            polygon_properties=polygon_properties,
+        )
+    elif fmt == "obj":
+        write_obj(path, positions, offsets, indices, progress=progress, corner_properties=corner_properties)
     else:
-        (write_off if fmt == "off" else write_obj)(path, positions, offsets, indices, progress=progress)
+        write_off(path, positions, offsets, indices, progress=progress)

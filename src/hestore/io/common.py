@@ -3,7 +3,8 @@
 This module belongs to `hestore.io` and is not public API, apart from
 `PolygonSoup`, which the package re-exports. It owns:
 
-* `PolygonSoup`, the one result type of every reader;
+* `PolygonSoup`, the one result type of every reader, and the per-element
+  data it carries (`Carried` describes a PLY property that becomes such data);
 * the error helper: every malformed file raises
   `~hestore.errors.InvalidInputError` as ``"{path}:{where}: {what}"``;
 * number tokens: the strict per-token conversions of the per-line readers
@@ -30,7 +31,7 @@ import os
 import stat
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -60,7 +61,7 @@ SPACE, NEWLINE, HASH, SLASH = ord(" "), ord("\n"), ord("#"), ord("/")
 
 @dataclass(frozen=True, eq=False)
 class PolygonSoup:
-    """Vertex positions and polygons as a file gives them.
+    """Vertex positions and polygons as a file gives them, with their per-element data.
 
     Attributes
     ----------
@@ -73,6 +74,20 @@ class PolygonSoup:
         is passed through for the builder to reject.
     lines : ndarray of int64, shape (F,), or None
         The 1-based line of each polygon in a text file; None for binary PLY.
+    vertex_properties : dict of str to ndarray
+        Per-vertex data by name (PLY vertex properties other than x, y, z):
+        arrays of first axis V.
+    polygon_properties : dict of str to ndarray
+        Per-polygon data by name (PLY face properties other than the index
+        list): arrays of first axis F.
+    corner_properties : dict of str to ndarray
+        Per-corner data by name (OBJ ``"uv"`` and ``"normal"``): arrays of
+        first axis ``len(indices)``, aligned with `indices` — corner ``k`` of
+        polygon ``i`` is row ``offsets[i] + k``. A corner without a value is
+        a row of NaN.
+
+    Every property array is float64 or int64, of shape ``(n,)`` or ``(n, k)``.
+    A reader gives empty dicts for a file that holds no such data.
 
     Examples
     --------
@@ -82,15 +97,80 @@ class PolygonSoup:
     PolygonSoup(vertices=4, polygons=2)
     >>> np.diff(soup.offsets)  # the number of vertices of each polygon
     array([3, 3])
+    >>> soup.vertex_properties
+    {}
+    >>> red = np.array([255, 0, 0, 9])
+    >>> PolygonSoup(soup.positions, soup.offsets, soup.indices, None, vertex_properties={"red": red})
+    PolygonSoup(vertices=4, polygons=2, vertex properties: red)
     """
 
     positions: np.ndarray
     offsets: np.ndarray
     indices: np.ndarray
     lines: np.ndarray | None
+    vertex_properties: dict[str, np.ndarray] = field(default_factory=dict)
+    polygon_properties: dict[str, np.ndarray] = field(default_factory=dict)
+    corner_properties: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __repr__(self) -> str:
-        return f"PolygonSoup(vertices={len(self.positions)}, polygons={len(self.offsets) - 1})"
+        text = f"PolygonSoup(vertices={len(self.positions)}, polygons={len(self.offsets) - 1}"
+        for kind, named in [
+            ("vertex", self.vertex_properties),
+            ("polygon", self.polygon_properties),
+            ("corner", self.corner_properties),
+        ]:
+            if named:
+                text += f", {kind} properties: {', '.join(named)}"
+        return text + ")"
+
+
+@dataclass(frozen=True)
+class Carried:
+    """A scalar PLY property that a reader keeps as per-element data.
+
+    ``bounds`` is ``(lowest, highest)`` for an integer type (the data is
+    int64), None for a floating-point one (float64).
+    """
+
+    column: int  # the property's position in its element's records
+    name: str
+    bounds: tuple[int, int] | None
+
+
+def carried_columns(carried: list[Carried], values: np.ndarray, at) -> list[np.ndarray] | None:
+    """The carried properties of rows of parsed numbers; None if one cannot be taken as it is.
+
+    ``at(column)`` is the position in ``values`` of that column in every row.
+    None (the per-line reader then names the bad value) for an integer
+    property whose value is not an integer of its type, or a float property
+    parsed as int64 — exact, but int64 parsing reads ``-0`` as ``0``.
+    """
+    out = []
+    for c in carried:
+        column = values[at(c.column)]
+        if c.bounds is None:
+            if values.dtype.kind != "f":
+                return None
+            out.append(column.astype(np.float64, copy=False))
+            continue
+        if values.dtype.kind == "f":
+            with np.errstate(invalid="ignore"):
+                if not (np.isfinite(column) & (column == np.floor(column))).all():
+                    return None
+        lo, hi = c.bounds
+        if len(column) and (column.min() < lo or column.max() > hi):
+            return None
+        out.append(column.astype(np.int64))
+    return out
+
+
+def carried_arrays(carried: list[Carried], parts: list[list]) -> dict[str, np.ndarray]:
+    """Per property, its pieces (arrays or lists of values) joined as int64 or float64."""
+    named = {}
+    for c, pieces in zip(carried, parts):
+        dtype = np.float64 if c.bounds is None else np.int64
+        named[c.name] = joined([np.asarray(piece, dtype=dtype) for piece in pieces], dtype)
+    return named
 
 
 # --------------------------------------------------------------------------
@@ -277,13 +357,14 @@ class Polygons:
         if lines is not None:
             self.lines.append(np.asarray(lines, dtype=np.int64))
 
-    def soup(self, positions: list[np.ndarray], text: bool = True) -> PolygonSoup:
+    def soup(self, positions: list[np.ndarray], text: bool = True, **properties) -> PolygonSoup:
+        """The soup of the polygons gathered; ``properties`` are `PolygonSoup`'s property dicts."""
         counts = joined(self.counts, np.int64)
         offsets = np.zeros(len(counts) + 1, dtype=np.int64)
         np.cumsum(counts, out=offsets[1:])
         lines = joined(self.lines, np.int64) if text else None
         xyz = joined(positions, np.float64).reshape(-1, 3)
-        return PolygonSoup(xyz, offsets, joined(self.indices, np.int64), lines)
+        return PolygonSoup(xyz, offsets, joined(self.indices, np.int64), lines, **properties)
 
 
 def joined(parts: list[np.ndarray], dtype) -> np.ndarray:
@@ -487,6 +568,7 @@ class RecordLayout(Protocol):
     xyz_columns: tuple[int | None, ...]
     index_list: int | None
     simple_list: tuple[int, int] | None
+    carried: list[Carried]
 
     def parse_record(self, tokens: list[bytes], path: str, line: int) -> list: ...
 
@@ -522,6 +604,8 @@ class Positions(Section):
         super().__init__(count)
         self.layout = layout
         self.parts: list[np.ndarray] = []
+        self.carried = [] if layout is None else layout.carried
+        self.carried_parts: list[list] = [[] for _ in self.carried]
 
     def fast(self, chunk, lines, text, counts) -> bool:
         if self.layout is not None and self.layout.has_lists:
@@ -532,7 +616,15 @@ class Positions(Section):
         if self.layout is None:
             xyz = first3(values, counts)
         else:
-            xyz = columns(values, counts, len(self.layout.properties), self.layout.xyz_columns)
+            width = len(self.layout.properties)
+            xyz = columns(values, counts, width, self.layout.xyz_columns)
+            if xyz is not None and self.carried:
+                row = np.arange(len(counts)) * width
+                found = carried_columns(self.carried, values, lambda column: row + column)
+                if found is None:
+                    return False
+                for parts, column in zip(self.carried_parts, found):
+                    parts.append(column)
         if xyz is None or not np.isfinite(xyz).all():
             return False
         self.parts.append(xyz)
@@ -540,6 +632,7 @@ class Positions(Section):
 
     def slow(self, rows, path, numbers) -> None:
         xyz = []
+        carried = [[] for _ in self.carried]
         for line, tokens in rows:
             if self.layout is not None:
                 record = self.layout.parse_record(tokens, path, line)
@@ -547,12 +640,20 @@ class Positions(Section):
                 if not all(map(math.isfinite, coords)):
                     raise error(path, line, f"vertex {coords} has a non-finite coordinate")
                 xyz.append(coords)
+                for values, c in zip(carried, self.carried):
+                    values.append(record[c.column])
             elif len(tokens) < 2:
                 raise error(path, line, f"a vertex needs at least 2 coordinates, found {len(tokens)}")
             else:
                 coords = [coordinate(t, path, line) for t in tokens[:3]]
                 xyz.append(tuple(coords) if len(coords) == 3 else (*coords, 0.0))
         self.parts.append(np.array(xyz, dtype=np.float64).reshape(-1, 3))
+        for parts, values in zip(self.carried_parts, carried):
+            parts.append(values)
+
+    def properties(self) -> dict[str, np.ndarray]:
+        """The carried properties of every vertex read, by name."""
+        return carried_arrays(self.carried, self.carried_parts)
 
 
 class Faces(Section):
@@ -564,6 +665,8 @@ class Faces(Section):
         super().__init__(count)
         self.polygons = polygons
         self.layout = layout
+        self.carried = [] if layout is None else layout.carried
+        self.carried_parts: list[list] = [[] for _ in self.carried]
 
     def fast(self, chunk, lines, text, counts) -> bool:
         if self.layout is None:
@@ -575,21 +678,38 @@ class Faces(Section):
             exact = True
         total = int(counts.sum())
         # Integers parse several times faster than floats; floats only when
-        # some other value on the lines (a colour, a quality) needs them.
-        values = parse(text, total, np.int64)
+        # some other value on the lines (a colour, a quality) needs them, or
+        # when a float property is kept (int64 parsing reads -0 as 0).
+        values = None
+        if not any(c.bounds is None for c in self.carried):
+            values = parse(text, total, np.int64)
         if values is None:
             values = parse(text, total, np.float64)
         found = None if values is None else count_prefixed(values, counts, lead, trail, exact)
         if found is None:
             return False
+        if self.carried:
+            # A scalar after the index list is k items further along its row.
+            row, k = np.cumsum(counts) - counts, found[0]
+            taken = carried_columns(
+                self.carried, values, lambda column: row + column if column < lead else row + column + k
+            )
+            if taken is None:
+                return False
+            for parts, column in zip(self.carried_parts, taken):
+                parts.append(column)
         self.polygons.add(found[0], found[1], chunk.line0 + lines)
         return True
 
     def slow(self, rows, path, numbers) -> None:
         counts, indices = [], []
+        carried = [[] for _ in self.carried]
         for line, tokens in rows:
             if self.layout is not None:
-                polygon = self.layout.parse_record(tokens, path, line)[self.layout.index_list]
+                record = self.layout.parse_record(tokens, path, line)
+                polygon = record[self.layout.index_list]
+                for values, c in zip(carried, self.carried):
+                    values.append(record[c.column])
             else:
                 k = whole(tokens[0], path, line, "vertex count")
                 if k < 0:
@@ -600,6 +720,12 @@ class Faces(Section):
             counts.append(len(polygon))
             indices.extend(polygon)
         self.polygons.add(counts, indices, numbers)
+        for parts, values in zip(self.carried_parts, carried):
+            parts.append(values)
+
+    def properties(self) -> dict[str, np.ndarray]:
+        """The carried properties of every polygon read, by name."""
+        return carried_arrays(self.carried, self.carried_parts)
 
 
 def read_sections(src: TextFile, sections: list[Section], comments: bool) -> None:
@@ -668,30 +794,66 @@ def integer_array(values, name: str) -> np.ndarray:
     return array.astype(np.int64, copy=False)
 
 
-def write_text_rows(f, positions, offsets, indices, vertex_prefix, keyword, base, report) -> None:
-    """Vertex lines, then polygon lines (``keyword`` or, if None, the vertex count first)."""
+def write_text_rows(
+    f, positions, offsets, indices, vertex_prefix, keyword, base, report, vertex_extra=(), polygon_extra=()
+) -> None:
+    """Vertex lines, then polygon lines (``keyword`` or, if None, the vertex count first).
+
+    ``vertex_extra`` and ``polygon_extra`` are 1-D int64 or float64 arrays,
+    one value per vertex (polygon) each, written after its coordinates
+    (indices) in order.
+    """
+    write_number_rows(f, positions, vertex_prefix, report, vertex_extra)
     n = len(positions)
-    for lo in range(0, n, WRITE_ROWS):
-        block = positions[lo : lo + WRITE_ROWS]
-        # %r is Python's shortest repr that reads back as the same double.
-        f.write((((vertex_prefix + "%r %r %r\n") * len(block)) % tuple(block.ravel().tolist())).encode())
-        report(lo + len(block))
     counts = np.diff(offsets)
     for lo in range(0, len(counts), WRITE_ROWS):
         hi = min(lo + WRITE_ROWS, len(counts))
         values = indices[offsets[lo] : offsets[hi]] + base
-        f.write(polygon_lines(counts[lo:hi], values, keyword).encode())
+        extra = [e[lo:hi] for e in polygon_extra]
+        f.write(polygon_lines(counts[lo:hi], values, keyword, extra).encode())
         report(n + hi)
 
 
-def polygon_lines(counts: np.ndarray, values: np.ndarray, keyword: str | None) -> str:
+def write_number_rows(f, rows: np.ndarray, prefix: str, report=None, extra=()) -> None:
+    """One line per row of ``rows`` (then of the 1-D ``extra`` arrays): ``prefix`` and its numbers.
+
+    Numbers are written as ``%r``: Python's shortest repr that reads back as
+    the same double (and an int's digits).
+    """
+    for lo in range(0, len(rows), WRITE_ROWS):
+        block = rows[lo : lo + WRITE_ROWS]
+        if extra:
+            table = np.empty((len(block), block.shape[1] + len(extra)), dtype=object)
+            for j, column in enumerate([*block.T, *(e[lo : lo + WRITE_ROWS] for e in extra)]):
+                table[:, j] = column.tolist()
+            values = table.ravel().tolist()
+        else:
+            values = block.ravel().tolist()
+        row = prefix + " ".join(["%r"] * (block.shape[1] + len(extra))) + "\n"
+        f.write(((row * len(block)) % tuple(values)).encode())
+        if report is not None:
+            report(lo + len(block))
+
+
+def polygon_lines(counts: np.ndarray, values: np.ndarray, keyword: str | None, extra=()) -> str:
+    """Polygon lines: ``keyword`` (or the count), the indices, then one value of each ``extra`` array."""
     arities, which = np.unique(counts, return_inverse=True)
-    templates = [(keyword or str(k)) + " %d" * k + "\n" for k in arities.tolist()]
+    tail = " %r" * len(extra) + "\n"
+    templates = [(keyword or str(k)) + " %d" * k + tail for k in arities.tolist()]
     if len(templates) == 1:
         template = templates[0] * len(counts)
     else:
         # One template per polygon, picked by arity, so that mixed arities
         # still take a single formatting pass.
-        template = "".join(np.array(templates, dtype=object)[which].tolist())
-    return template % tuple(values.tolist())
+        template = "".join(np.array(templates, dtype=object)[which.reshape(-1)].tolist())
+    if not extra:
+        return template % tuple(values.tolist())
+    # Each polygon's indices, then its extra values, in one flat sequence.
+    c = len(extra)
+    starts = np.cumsum(counts) - counts + np.arange(len(counts)) * c
+    flat = np.empty(len(values) + len(counts) * c, dtype=object)
+    flat[ranges(starts, counts)] = values.tolist()
+    for j, column in enumerate(extra):
+        flat[starts + counts + j] = column.tolist()
+    return template % tuple(flat.tolist())
 

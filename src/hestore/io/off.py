@@ -8,7 +8,8 @@ lines are skipped. One vertex or face per line: values after x, y, z
 (colours, normals, texture coordinates) and after a face's indices (colours)
 are ignored, as is anything after the last face. Binary OFF and homogeneous
 ``4OFF`` are refused. The counts are at most 2**63 - 1, and every vertex and
-face takes a line, so they must fit in the bytes after the header.
+face takes a line, so they must fit in the bytes after the header. The
+soup's property dicts stay empty: OFF colours and normals are not kept.
 
 The writer writes ``OFF``, the counts with an edge count of 0, one vertex per
 line (x y z) and one polygon per line (its vertex count, then its indices).

@@ -3,9 +3,15 @@
 What the reader accepts: ``ascii``, ``binary_little_endian`` and
 ``binary_big_endian``, every scalar type under its classic and its sized name
 (``uchar``/``uint8``, ``float``/``float32``, ...). The ``vertex`` element
-needs x and y (z is optional); its other properties are skipped. The ``face``
-element needs a ``vertex_indices`` (or ``vertex_index``) list; its other
-properties are skipped. Other elements (``edge``, ``material``, even
+needs x and y (z is optional); its other scalar properties (colours,
+normals, quality, ...) become `PolygonSoup.vertex_properties` of the same
+names. The ``face`` element needs a ``vertex_indices`` (or ``vertex_index``)
+list; its other scalar properties become `PolygonSoup.polygon_properties`.
+Integer types give int64 arrays, ``float`` and ``double`` float64 ones; in
+ASCII, a value of an integer property must be an integer (``3.0`` is taken)
+within its type's range. Property names must be unique within the vertex
+and face elements. List properties other than the index list are skipped.
+Other elements (``edge``, ``material``, even
 ``tristrips``) are skipped, as are ``comment`` and ``obj_info`` lines. A file
 without a ``face`` element is a point set: positions and no polygons; one
 with neither a ``vertex`` nor a ``face`` element is empty, as OpenMesh reads
@@ -22,14 +28,20 @@ their `PolygonSoup.lines` is None.
 
 The writer writes binary little endian (or ASCII) PLY with double x, y, z
 and an ``int`` ``vertex_indices`` list whose count type is ``uchar`` unless
-some polygon has more than 255 vertices.
+some polygon has more than 255 vertices. Vertex and polygon properties
+follow x, y, z and the index list: float arrays as ``double``, integer
+arrays as ``int`` (every value must fit in 32 bits), bool arrays as
+``uchar`` 0/1. An array of shape ``(n, k)`` becomes the ``k`` properties
+``{name}_0`` .. ``{name}_{k-1}``, and is read back as those ``k`` arrays.
 """
 
 from __future__ import annotations
 
 import os
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -37,6 +49,7 @@ from hestore.errors import InvalidInputError
 from hestore.io import common
 from hestore.io.common import (
     TEXT_RECORD_BYTES,
+    Carried,
     Faces,
     Polygons,
     PolygonSoup,
@@ -76,7 +89,9 @@ def read_ply(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     -------
     PolygonSoup
         Positions and polygons in the file's order; the line of each polygon
-        for ASCII PLY, None for binary PLY.
+        for ASCII PLY, None for binary PLY; the other scalar properties of
+        vertices and faces as its ``vertex_properties`` and
+        ``polygon_properties``.
 
     Raises
     ------
@@ -102,6 +117,13 @@ def read_ply(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     Traceback (most recent call last):
     ...
     hestore.errors.InvalidInputError: .../segment.ply:11: vertex_indices of 2 items has only 1
+    >>> coloured = header.replace("property float y\\n", "property float y\\nproperty uchar red\\n")
+    >>> _ = path.write_text(coloured + "0 0 255\\n1 0.5 7\\n2 0 1\\n")
+    >>> soup = read_ply(path)
+    >>> soup
+    PolygonSoup(vertices=2, polygons=1, vertex properties: red)
+    >>> soup.vertex_properties["red"]
+    array([255,   7])
     >>> folder.cleanup()
     """
     return read_file(path, progress, _read)
@@ -115,11 +137,14 @@ def write_ply(
     *,
     binary: bool = True,
     progress: Progress | None = None,
+    vertex_properties: Mapping | None = None,
+    polygon_properties: Mapping | None = None,
 ) -> None:
-    """Write vertex positions and polygons as a PLY file.
+    """Write vertex positions and polygons, with per-element data, as a PLY file.
 
-    Positions are written as doubles — in ASCII, in their shortest round-trip
-    form — so reading the file back gives exactly the same arrays.
+    Positions and float properties are written as doubles — in ASCII, in
+    their shortest round-trip form — so reading the file back gives exactly
+    the same arrays.
 
     Parameters
     ----------
@@ -137,13 +162,25 @@ def write_ply(
     progress : callable, optional
         Called as ``progress(done, total)`` now and then, counting vertices
         and polygons written, and at least once at the end.
+    vertex_properties : mapping of str to array_like, optional
+        Per-vertex data, each of shape ``(V,)`` or ``(V, k)``, written after
+        x, y, z in the mapping's order: float arrays as ``double``, integer
+        ones as ``int``, bool ones as ``uchar``. A ``(V, k)`` array becomes
+        the properties ``{name}_0`` .. ``{name}_{k-1}``, which is how
+        `read_ply` gives it back.
+    polygon_properties : mapping of str to array_like, optional
+        Per-polygon data, each of shape ``(F,)`` or ``(F, k)``, written after
+        the index list, as for ``vertex_properties``.
 
     Raises
     ------
     InvalidInputError
         Arrays that do not describe polygons on these vertices, or more than
-        2**31 vertices (the indices are written as ``int``). Nothing is
-        written then.
+        2**31 vertices (the indices are written as ``int``); a property name
+        that is not a PLY word (printable ASCII, no spaces) or that is taken
+        (x, y, z; vertex_indices, vertex_index; another property's); a
+        property of the wrong length or type, or an integer one with a value
+        beyond 32 bits. Nothing is written then.
 
     Examples
     --------
@@ -168,18 +205,46 @@ def write_ply(
     Traceback (most recent call last):
     ...
     hestore.errors.InvalidInputError: polygon 0 has vertex index 1, out of range for 1 vertices
+    >>> write_ply(path, [(0, 0, 0), (1, 0.5, 0)], [0, 2], [0, 1], binary=False,
+    ...           vertex_properties={"uv": [(0.25, 1), (0.5, 0)]}, polygon_properties={"label": [7]})
+    >>> print(path.read_text(), end="")
+    ply
+    format ascii 1.0
+    element vertex 2
+    property double x
+    property double y
+    property double z
+    property double uv_0
+    property double uv_1
+    element face 1
+    property list uchar int vertex_indices
+    property int label
+    end_header
+    0.0 0.0 0.0 0.25 1.0
+    1.0 0.5 0.0 0.5 0.0
+    2 0 1 7
+    >>> sorted(read_ply(path).vertex_properties)
+    ['uv_0', 'uv_1']
+    >>> write_ply(path, [(0, 0, 0)], [0, 1], [0], polygon_properties={"vertex_indices": [1]})
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: face property name 'vertex_indices' is taken by the index list
     >>> folder.cleanup()
     """
     positions, offsets, indices = checked_arrays(positions, offsets, indices)
     if len(positions) > 2**31:
         raise InvalidInputError("PLY files written here hold at most 2**31 vertices (int vertex indices)")
+    vertex_columns = _property_columns(vertex_properties, len(positions), "vertex", _VERTEX_WORDS)
+    face_columns = _property_columns(polygon_properties, len(offsets) - 1, "face", _FACE_WORDS)
     report = RowProgress(progress, positions, offsets)
     with open(path, "wb") as f:
         if binary:
-            _write_binary(f, positions, offsets, indices, report)
+            _write_binary(f, positions, offsets, indices, report, vertex_columns, face_columns)
         else:
-            f.write(_header("ascii", positions, offsets))
-            write_text_rows(f, positions, offsets, indices, "", None, 0, report)
+            f.write(_header("ascii", positions, offsets, vertex_columns, face_columns))
+            vertex_extra = [values for _, _, values in vertex_columns]
+            face_extra = [values for _, _, values in face_columns]
+            write_text_rows(f, positions, offsets, indices, "", None, 0, report, vertex_extra, face_extra)
     report.finish()
 
 
@@ -246,15 +311,46 @@ class _Element:
             return None
         return at, len(self.properties) - at - 1
 
+    @cached_property
+    def carried(self) -> list[Carried]:
+        """The scalar properties kept as per-element data: all but x, y, z of vertices and the face index list.
+
+        Read once the header is complete.
+        """
+        if self.name == "vertex":
+            taken = set(self.xyz_columns)
+        elif self.name == "face":
+            taken = {self.index_list}
+        else:
+            return []
+        kept = []
+        for i, p in enumerate(self.properties):
+            if not p.is_list and i not in taken:
+                bounds = None if p.type[0] == "f" else (int(np.iinfo(p.type).min), int(np.iinfo(p.type).max))
+                kept.append(Carried(i, p.name, bounds))
+        return kept
+
+    @cached_property
+    def _integers(self) -> dict[int, Carried]:
+        return {c.column: c for c in self.carried if c.bounds is not None}
+
     def parse_record(self, tokens: list[bytes], path: str, line: int) -> list:
-        """One ASCII record, property by property: floats, and lists (of ints for the index list)."""
+        """One ASCII record, property by property: numbers, and lists (of ints for the index list).
+
+        Numbers are floats, except for carried integer properties: ints
+        within their type's range.
+        """
         record: list = []
         at = 0
+        integers = self._integers
         for i, prop in enumerate(self.properties):
             if at >= len(tokens):
                 raise error(path, line, f"{self.name} record ends before its property {prop.name!r}")
             if not prop.is_list:
-                record.append(_float_value(tokens[at], path, line))
+                if i in integers:
+                    record.append(_int_value(tokens[at], path, line, prop, integers[i].bounds))
+                else:
+                    record.append(_float_value(tokens[at], path, line))
                 at += 1
             else:
                 k = whole(tokens[at], path, line, f"{prop.name} count")
@@ -278,6 +374,14 @@ def _float_value(token: bytes, path: str, line: int) -> float:
         return float(token)
     except ValueError:
         raise error(path, line, f"expected a number, found {show(token)}") from None
+
+
+def _int_value(token: bytes, path: str, line: int, prop: _Property, bounds: tuple[int, int]) -> int:
+    value = whole(token, path, line, f"{prop.name} value")
+    if not bounds[0] <= value <= bounds[1]:
+        name = next(k for k, v in _TYPES.items() if v == prop.type)
+        raise error(path, line, f"{prop.name} value {show(token)} is out of range for {name}")
+    return value
 
 
 def _shown(word: str) -> str:
@@ -364,6 +468,13 @@ def _check_elements(named: dict[str, _Element], path: str) -> None:
             raise error(path, face.line, "the face element has no vertex_indices list")
         if face.properties[at].type[0] == "f":
             raise error(path, face.line, "face vertex indices must have an integer type")
+    # Their properties become arrays by name: a name used twice is ambiguous.
+    for element in (vertex, face):
+        if element is not None:
+            names = [p.name for p in element.properties]
+            twice = next((name for i, name in enumerate(names) if name in names[:i]), None)
+            if twice is not None:
+                raise error(path, element.line, f"the {element.name} element has two properties {_shown(twice)}")
 
 
 # --------------------------------------------------------------------------
@@ -380,20 +491,25 @@ def _read(f, path: str, size: int, progress: Progress | None) -> PolygonSoup:
                 room -= e.count * TEXT_RECORD_BYTES
         src = TextFile(f, path, size, progress, line=body_line)
         polygons = Polygons()
-        vertices = None
+        vertices = faces = None
         sections: list[Section] = []
         for e in elements:
             if e.name == "vertex":
                 vertices = Positions(e.count, e)
                 sections.append(vertices)
             elif e.name == "face":
-                sections.append(Faces(e.count, polygons, e))
+                faces = Faces(e.count, polygons, e)
+                sections.append(faces)
             else:
                 skip = Skip(e.count if e.properties else 0)
                 skip.what = f"{e.name} records"
                 sections.append(skip)
         read_sections(src, sections, comments=False)
-        return polygons.soup(vertices.parts if vertices is not None else [])
+        return polygons.soup(
+            vertices.parts if vertices is not None else [],
+            vertex_properties=vertices.properties() if vertices is not None else {},
+            polygon_properties=faces.properties() if faces is not None else {},
+        )
     return _read_binary(_BinaryFile(f, path, size, progress), elements, order)
 
 
@@ -483,6 +599,7 @@ class _Records:
 def _read_binary(src: _BinaryFile, elements: list[_Element], order: str) -> PolygonSoup:
     polygons = Polygons()
     xyz = np.empty((0, 3))
+    carried: dict[str, dict[str, np.ndarray]] = {"vertex": {}, "face": {}}
     for element in elements:
         if not element.properties:
             continue  # records of no bytes, however many
@@ -502,7 +619,15 @@ def _read_binary(src: _BinaryFile, elements: list[_Element], order: str) -> Poly
         elif element.name == "face":
             counts, indices = records.list(element.index_list)
             polygons.add(counts, indices.astype(np.int64))
-    return polygons.soup([xyz], text=False)
+        if element.name in carried:
+            with np.errstate(invalid="ignore"):  # a signalling NaN, kept as the NaN it is
+                carried[element.name] = {
+                    c.name: records.scalar(c.column).astype(np.float64 if c.bounds is None else np.int64)
+                    for c in element.carried
+                }
+    return polygons.soup(
+        [xyz], text=False, vertex_properties=carried["vertex"], polygon_properties=carried["face"]
+    )
 
 
 def _binary_element(src: _BinaryFile, element: _Element, order: str) -> _Records:
@@ -623,46 +748,123 @@ def _walk(buf: bytes, element: _Element, order: str, n: int, path: str, start: i
 # --------------------------------------------------------------------------
 # Writing
 
+# The names the writer uses itself, with what they are for.
+_VERTEX_WORDS = {"x": "the positions", "y": "the positions", "z": "the positions"}
+_FACE_WORDS = {"vertex_indices": "the index list", "vertex_index": "the index list"}
+
+# PLY type and numpy type (little endian) of a written property column.
+_WRITTEN = {"double": "<f8", "int": "<i4", "uchar": "u1"}
+
+
+def _property_columns(named, n: int, element: str, words: dict[str, str]) -> list[tuple[str, str, np.ndarray]]:
+    """``(name, PLY type, values)`` of every property written for one element, checked."""
+    if named is None:
+        return []
+    if not isinstance(named, Mapping):
+        raise InvalidInputError(f"{element} properties must map names to arrays, not be a {type(named).__name__}")
+    columns: list[tuple[str, str, np.ndarray]] = []
+    taken = dict(words)
+    for name, values in named.items():
+        if not (isinstance(name, str) and name and all("!" <= ch <= "~" for ch in name)):
+            raise InvalidInputError(
+                f"{element} property name {name!r} is not a PLY word (printable ASCII, no spaces, not empty)"
+            )
+        array = np.asarray(values)
+        if array.ndim not in (1, 2) or len(array) != n or (array.ndim == 2 and array.shape[1] == 0):
+            shape = f"({n},) or ({n}, k)"
+            raise InvalidInputError(f"{element} property {name!r} must have shape {shape}, not {array.shape}")
+        kind = array.dtype.kind
+        if kind == "b":
+            ply_type = "uchar"
+        elif kind in "iu":
+            if array.size and (array.min() < -(2**31) or array.max() > 2**31 - 1):
+                raise InvalidInputError(
+                    f"{element} property {name!r} has values beyond the 32 bits of a PLY int "
+                    f"(from {array.min()} to {array.max()})"
+                )
+            ply_type = "int"
+        elif kind == "f":
+            ply_type = "double"
+        else:
+            raise InvalidInputError(f"{element} property {name!r} must be of numbers or bools, not {array.dtype}")
+        array = array.astype(_WRITTEN[ply_type])
+        if array.ndim == 1:
+            split = [(name, array)]
+        else:
+            split = [(f"{name}_{j}", array[:, j]) for j in range(array.shape[1])]
+        for column_name, column in split:
+            if column_name in taken:
+                raise InvalidInputError(f"{element} property name {column_name!r} is taken by {taken[column_name]}")
+            taken[column_name] = f"property {name!r}"
+            columns.append((column_name, ply_type, column))
+    return columns
+
+
+def _records(columns: list[tuple[str, str, np.ndarray]], n: int) -> np.ndarray:
+    """The columns as one little-endian structured array of ``n`` records."""
+    records = np.empty(n, dtype=[(f"p{j}", _WRITTEN[t]) for j, (_, t, _) in enumerate(columns)])
+    for j, (_, _, values) in enumerate(columns):
+        records[f"p{j}"] = values
+    return records
+
 
 def _list_count_type(counts: np.ndarray) -> str:
     """The smallest PLY list count type that holds every polygon's vertex count."""
     return "uchar" if len(counts) == 0 or counts.max() <= 255 else "uint"
 
 
-def _header(fmt: str, positions: np.ndarray, offsets: np.ndarray) -> bytes:
+def _header(fmt: str, positions: np.ndarray, offsets: np.ndarray, vertex_columns=(), face_columns=()) -> bytes:
     counts = np.diff(offsets)
+    vertex_lines = "".join(f"property {t} {name}\n" for name, t, _ in vertex_columns)
+    face_lines = "".join(f"property {t} {name}\n" for name, t, _ in face_columns)
     return (
         "ply\n"
         f"format {fmt} 1.0\n"
         f"element vertex {len(positions)}\n"
         "property double x\nproperty double y\nproperty double z\n"
+        f"{vertex_lines}"
         f"element face {len(counts)}\n"
         f"property list {_list_count_type(counts)} int vertex_indices\n"
+        f"{face_lines}"
         "end_header\n"
     ).encode("ascii")
 
 
-def _write_binary(f, positions, offsets, indices, report) -> None:
-    f.write(_header("binary_little_endian", positions, offsets))
-    f.write(positions.astype("<f8").tobytes())
+def _write_binary(f, positions, offsets, indices, report, vertex_columns, face_columns) -> None:
+    f.write(_header("binary_little_endian", positions, offsets, vertex_columns, face_columns))
+    if vertex_columns:
+        extra = _records(vertex_columns, len(positions))
+        records = np.empty(len(positions), dtype=[("xyz", "<f8", (3,)), ("extra", extra.dtype)])
+        records["xyz"] = positions
+        records["extra"] = extra
+        f.write(records.tobytes())
+    else:
+        f.write(positions.astype("<f8").tobytes())
     report(len(positions))
     counts = np.diff(offsets)
     if len(counts) == 0:
         return
     count_type = np.dtype("<" + _TYPES[_list_count_type(counts)])
+    tail = _records(face_columns, len(counts))  # the properties after the index list
     k = int(counts[0])
     if (counts == k).all():
-        records = np.empty(len(counts), dtype=[("n", count_type), ("i", "<i4", (k,))])
+        fields = [("n", count_type), ("i", "<i4", (k,))]
+        records = np.empty(len(counts), dtype=fields + ([("extra", tail.dtype)] if face_columns else []))
         records["n"] = k
         records["i"] = indices.reshape(-1, k)
+        if face_columns:
+            records["extra"] = tail
         f.write(records.tobytes())
     else:
-        # Record i starts after i counts and offsets[i] indices.
-        cs = count_type.itemsize
-        out = np.empty(len(counts) * cs + len(indices) * 4, dtype=np.uint8)
-        record_at = np.arange(len(counts)) * cs + offsets[:-1] * 4
+        # Record i starts after i counts, i property tails and offsets[i] indices.
+        cs, ts = count_type.itemsize, tail.dtype.itemsize
+        out = np.empty(len(counts) * (cs + ts) + len(indices) * 4, dtype=np.uint8)
+        record_at = np.arange(len(counts)) * (cs + ts) + offsets[:-1] * 4
         out[record_at[:, None] + np.arange(cs)] = counts.astype(count_type).view(np.uint8).reshape(-1, cs)
         polygon = np.repeat(np.arange(len(counts)), counts)
-        item_at = (polygon + 1) * cs + np.arange(len(indices)) * 4
+        item_at = (polygon + 1) * cs + polygon * ts + np.arange(len(indices)) * 4
         out[item_at[:, None] + np.arange(4)] = indices.astype("<i4").view(np.uint8).reshape(-1, 4)
+        if ts:
+            tail_at = record_at + cs + counts * 4
+            out[tail_at[:, None] + np.arange(ts)] = tail.view(np.uint8).reshape(-1, ts)
         f.write(out.tobytes())
