@@ -1083,3 +1083,119 @@ def test_an_unexpected_error_is_one_line_too(capsys, url, monkeypatch):
     code, out, err = run(capsys, "--db", url, "list")
     assert_one_line_error(code, out, err)
     assert "unexpected RuntimeError: something nobody expected" in err and cli.DEBUG_ENVIRONMENT in err
+
+
+# -- properties: info, and weighted paths ---------------------------------------------
+
+
+def build_weighted(url: str) -> dict[str, int]:
+    """``w``: from ``a`` to ``c`` along the legs of a right triangle (9 + 12, two edges) or its
+    hypotenuse (15) cut into three edges of 5, with properties of every kind; ``u`` hangs off
+    ``c`` by a wire edge of length 1."""
+    with hestore.open(url) as store:
+        mesh = store.create_mesh("w")
+        xyz = {"a": (0, 0, 0), "b": (9, 0, 0), "c": (9, 12, 0), "q": (6, 8, 0), "p": (3, 4, 0)}
+        v = {name: mesh.add_vertex(position) for name, position in xyz.items()}
+        mesh.add_polygon([v[n] for n in "abcqp"])
+        v["u"] = mesh.add_vertex((9, 13, 0))
+        wire = mesh.add_edge(v["c"], v["u"])
+        mesh.add_property("vertex", "temperature", "float64", default=0.0)
+        mesh.add_property("halfedge", "uv", "float64", shape=(2,))
+        mesh.add_property("edge", "cost", "int64", default=1)
+        mesh.add_property("edge", "tag", "str")
+        mesh.add_property("edge", "toll", "float64")  # no default
+        mesh.add_property("polygon", "label", "str", default="")
+        with store.transaction():
+            mesh.find_halfedge(v["b"], v["c"]).edge["cost"] = 5  # the legs: 1 + 5, the hypotenuse: 3
+        ids = {name: vertex.id for name, vertex in v.items()}
+        ids["wire"] = wire.id
+        return ids
+
+
+def test_info_lists_properties(capsys, db_url):
+    build_weighted(db_url)
+    code, out, err = run(capsys, "--db", db_url, "info", "w")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert lines[0] == "name:                    w" and lines[20] == "manifold:                no"
+    assert lines[21:] == [
+        "properties:              6",
+        "  vertex    temperature  float64  ()    default 0.0",
+        "  halfedge  uv           float64  (2,)  no default",
+        "  edge      cost         int64    ()    default 1",
+        "  edge      tag          str      ()    no default",
+        "  edge      toll         float64  ()    no default",
+        "  polygon   label        str      ()    default ''",
+    ]
+    code, out, err = run(capsys, "--db", db_url, "info", "w", "--json")
+    assert (code, err) == (0, "")
+    info = json.loads(out)
+    assert list(info) == [*cli._INFO_LABELS, "properties"]
+    assert info["properties"] == [
+        {"kind": "vertex", "name": "temperature", "dtype": "float64", "shape": [], "default": 0.0},
+        {"kind": "halfedge", "name": "uv", "dtype": "float64", "shape": [2], "default": None},
+        {"kind": "edge", "name": "cost", "dtype": "int64", "shape": [], "default": 1},
+        {"kind": "edge", "name": "tag", "dtype": "str", "shape": [], "default": None},
+        {"kind": "edge", "name": "toll", "dtype": "float64", "shape": [], "default": None},
+        {"kind": "polygon", "name": "label", "dtype": "str", "shape": [], "default": ""},
+    ]
+    with hestore.open(db_url) as store:
+        store.mesh("w").add_property("vertex", "rgb", "int64", shape=(3,), default=(0, 0, 255))
+    code, out, _ = run(capsys, "--db", db_url, "info", "w")
+    assert "properties:              7\n" in out
+    assert "  vertex    rgb          int64    (3,)  default (0, 0, 255)\n" in out
+    assert json.loads(run(capsys, "--db", db_url, "info", "w", "--json")[1])["properties"][1] == {
+        "kind": "vertex", "name": "rgb", "dtype": "int64", "shape": [3], "default": [0, 0, 255],
+    }  # fmt: skip
+
+
+def test_graph_path_weight(capsys, db_url):
+    v = build_weighted(db_url)
+    a, b, c, q, p = (v[n] for n in "abcqp")
+    argv = ("--db", db_url, "graph", "w", "path", str(a), str(c))
+    assert run(capsys, *argv) == (0, f"path: {a} {b} {c}\nlength: 2 edges\n", "")
+    assert run(capsys, *argv, "--weight", "length") == (
+        0, f"path: {a} {p} {q} {c}\nlength: 3 edges\ntotal length: 15\n", "",
+    )  # fmt: skip
+    assert run(capsys, *argv, "--weight", "cost") == (
+        0, f"path: {a} {p} {q} {c}\nlength: 3 edges\ntotal cost: 3\n", "",
+    )  # fmt: skip
+    assert run(capsys, "--db", db_url, "graph", "w", "path", str(b), str(q), "--weight", "length") == (
+        0, f"path: {b} {c} {q}\nlength: 2 edges\ntotal length: 17\n", "",
+    )  # fmt: skip
+    u = v["u"]
+    assert run(capsys, "--db", db_url, "graph", "w", "path", str(u), str(p), "--weight", "length") == (
+        0, f"path: {u} {c} {q} {p}\nlength: 3 edges\ntotal length: 11\n", "",
+    )  # fmt: skip
+    code, out, err = run(capsys, "--db", db_url, "graph", "w", "path", "--weight", "length", str(a), str(a))
+    assert (code, out, err) == (0, f"path: {a}\nlength: 0 edges\ntotal length: 0\n", "")
+    code, out, _ = run(capsys, "graph", "NAME", "path", "--help")
+    assert code == 0 and "--weight" in out and "length" in out
+
+
+def test_graph_path_bad_weight(capsys, db_url):
+    v = build_weighted(db_url)
+    argv = ("--db", db_url, "graph", "w", "path", str(v["a"]), str(v["c"]), "--weight")
+    for weight, message in [
+        ("nope", "mesh 'w' has no edge property named 'nope'; --weight takes: length, cost, toll"),
+        ("tag", "edge property 'tag' of mesh 'w' is str, not a number"),
+        ("uv", "has no edge property named 'uv'"),  # a half-edge property
+        ("temperature", "has no edge property named 'temperature'"),
+        ("toll", "cannot weigh the paths of 'w' by toll: edge 0 has no value of property 'toll', which has no default"),
+    ]:
+        code, out, err = run(capsys, *argv, weight)
+        assert_one_line_error(code, out, err)
+        assert message in err, err
+
+    # Edges the search meets must have a weight of 0 or more.
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("w")
+        mesh.set_position(mesh.vertex(v["u"]), None)
+        mesh.edge(v["wire"])["cost"] = -2
+    back = ("--db", db_url, "graph", "w", "path", str(v["c"]), str(v["a"]), "--weight")  # meets the wire first
+    code, out, err = run(capsys, *back, "length")
+    assert_one_line_error(code, out, err)
+    assert f"edge {v['wire']} has no length: vertex {v['u']} has no position" in err, err
+    code, out, err = run(capsys, *back, "cost")
+    assert_one_line_error(code, out, err)
+    assert f"edge {v['wire']} has a negative cost (-2)" in err, err

@@ -726,3 +726,274 @@ def test_graph_state_machine(db_url, backend):
             database=None,
         ),
     )
+
+
+# -- attrs: properties and "length" on nodes and edges ------------------------------------
+
+
+def right_triangle(mesh: hestore.Mesh) -> dict:
+    """From ``a`` to ``c``: the legs of a right triangle (9 + 12, two edges) or its hypotenuse
+    (15), cut at ``p`` and ``q`` into three edges of 5 (each a 3-4-5 triangle's hypotenuse).
+
+    The pentagon a b c q p; a second polygon a p x below the hypotenuse's first third (for the
+    dual), and ``u``, a vertex without a position, joined to ``c`` by a wire edge.
+    """
+    xyz = {"a": (0, 0, 0), "b": (9, 0, 0), "c": (9, 12, 0), "q": (6, 8, 0), "p": (3, 4, 0), "x": (0, 4, 0)}
+    v = {name: mesh.add_vertex(position) for name, position in xyz.items()}
+    v["u"] = mesh.add_vertex()
+    pentagon = mesh.add_polygon([v[n] for n in "abcqp"])
+    corner = mesh.add_polygon([v["a"], v["p"], v["x"]])
+    wire = mesh.add_edge(v["c"], v["u"])
+    return {**v, "pentagon": pentagon, "corner": corner, "wire": wire}
+
+
+def edge_between(a: hestore.Vertex, b: hestore.Vertex) -> hestore.Edge:
+    return a.mesh.find_halfedge(a, b).edge
+
+
+def test_attrs_length_by_hand_and_weighted_path(mesh):
+    t = right_triangle(mesh)
+    a, b, c, p, q, x, u = (t[n].id for n in "abcpqxu")
+    by_hand = {
+        (a, b): 9.0, (b, c): 12.0, (c, q): 5.0, (q, p): 5.0, (p, a): 5.0,  # sqrt(3² + 4²) = 5
+        (p, x): 3.0, (x, a): 4.0, (c, u): None,  # u has no position
+    }  # fmt: skip
+    G = mesh.to_networkx(attrs=["length"])
+    assert {k: d["length"] for u_, v_, k, d in G.edges(keys=True, data=True)} == {
+        edge_between(mesh.vertex(e0), mesh.vertex(e1)).id: length for (e0, e1), length in by_hand.items()
+    }
+    assert all(type(d["length"]) is float for *_, d in G.edges(data=True) if d["length"] is not None)
+    assert G.edges[c, u, t["wire"].id]["length"] is None
+    # The view's own attributes stay, and come first.
+    assert list(G.edges[a, b, edge_between(t["a"], t["b"]).id]) == ["halfedges", "polygons", "length"]
+
+    assert nx.shortest_path(G, a, c) == [a, b, c]  # fewest edges: the legs
+    assert nx.shortest_path(G, a, c, weight="length") == [a, p, q, c]  # shortest: the hypotenuse
+    assert nx.shortest_path_length(G, a, c, weight="length") == pytest.approx(15.0)
+    assert nx.shortest_path_length(G, b, x, weight="length") == pytest.approx(13.0)  # b a x: 9 + 4
+    for kind in ("graph", "halfedge"):
+        H = mesh.to_networkx(kind, attrs=["length"])
+        assert nx.shortest_path(H, a, c, weight="length") == [a, p, q, c], kind
+        assert nx.shortest_path(H, c, a, weight="length") == [c, q, p, a], kind
+    H = mesh.to_networkx("halfedge", attrs="length")  # one name as a string
+    assert {h: d["length"] for _, _, h, d in H.edges(keys=True, data=True)} == {
+        h.id: G.edges[h.origin.id, h.target.id, h.edge.id]["length"] for h in mesh.halfedges()
+    }
+
+    # The dual's edges: the length of the primal edge the two polygons share (p-a).
+    D = mesh.to_networkx("dual", attrs=["length"])
+    assert list(D.edges(keys=True, data="length")) == [
+        (t["pentagon"].id, t["corner"].id, edge_between(t["p"], t["a"]).id, 5.0)
+    ]
+    assert D.nodes[t["pentagon"].id] == {"halfedge": t["pentagon"].halfedge.id}
+
+    # A self-loop has length 0; a moved vertex changes the lengths at the next revision.
+    loop = mesh.add_edge(t["b"], t["b"])
+    mesh.set_position(t["b"], (9, 40, 0))
+    G2 = mesh.to_networkx(attrs=["length"])
+    assert G2.edges[b, b, loop.id]["length"] == 0.0
+    assert G2.edges[a, b, edge_between(t["a"], t["b"]).id]["length"] == pytest.approx(41.0)  # 9-40-41
+    assert G.edges[a, b, edge_between(t["a"], t["b"]).id]["length"] == 9.0  # the old graph is untouched
+
+
+def declare_everything(mesh: hestore.Mesh, t: dict) -> None:
+    """Properties of every kind on `right_triangle`, some set, some not."""
+    mesh.add_property("vertex", "t", "float64", default=0.0)
+    mesh.add_property("vertex", "rgb", "int64", shape=(3,))  # no default: set on a only
+    mesh.add_property("vertex", "both", "str", default="v")
+    mesh.add_property("edge", "both", "bool", default=False)
+    mesh.add_property("edge", "w", "int64", default=10)
+    mesh.add_property("edge", "tag", "str")  # no default
+    mesh.add_property("halfedge", "uv", "float64", shape=(2,))  # no default
+    mesh.add_property("polygon", "label", "str", default="")
+    mesh.add_property("polygon", "n", "float64", shape=(3,), default=(0.0, 0.0, 1.0))
+    with mesh.store.transaction():
+        t["a"]["t"] = 21.5
+        t["a"]["rgb"] = (255, 0, 7)
+        t["c"]["both"] = "ç"
+        edge_between(t["a"], t["b"])["w"] = 3
+        edge_between(t["a"], t["b"])["both"] = True
+        edge_between(t["b"], t["c"])["tag"] = "leg"
+        mesh.find_halfedge(t["a"], t["b"])["uv"] = (0.25, 0.5)
+        t["pentagon"]["label"] = "big"
+        t["corner"]["n"] = (0.0, 1.0, 0.0)
+
+
+def with_props(data: dict, handle, names: list[str]) -> dict:
+    """``data`` and each property's value as ``handle[name]`` says; None (unset, no default): absent."""
+    out = dict(data)
+    for name in names:
+        value = handle[name]
+        if value is not None:
+            out[name] = value
+    return out
+
+
+def test_attrs_on_every_kind(mesh):
+    t = right_triangle(mesh)
+    declare_everything(mesh, t)
+    plain = {kind: mesh.to_networkx(kind) for kind in KINDS}
+
+    for kind in ("multigraph", "graph", "halfedge"):
+        names = ["t", "rgb", "both", "w", "tag"] + (["uv"] if kind == "halfedge" else [])
+        G = mesh.to_networkx(kind, attrs=names)
+        assert G.graph == plain[kind].graph
+        for v in mesh.vertices():
+            assert G.nodes[v.id] == with_props(plain[kind].nodes[v.id], v, ["t", "rgb", "both"]), (kind, v)
+        if kind == "multigraph":
+            for e in mesh.edges():
+                u, w = (h.origin.id for h in e.halfedges())
+                assert G.edges[u, w, e.id] == with_props(plain[kind].edges[u, w, e.id], e, ["both", "w", "tag"])
+        elif kind == "halfedge":
+            for h in mesh.halfedges():
+                want = with_props(plain[kind].edges[h.origin.id, h.target.id, h.id], h.edge, ["both", "w", "tag"])
+                want = with_props(want, h, ["uv"])
+                assert G.edges[h.origin.id, h.target.id, h.id] == want, h
+        else:
+            for u, w, d in plain[kind].edges(data=True):
+                [e] = d["edges"]  # no parallel edges here
+                assert G.edges[u, w] == with_props(d, mesh.edge(e), ["both", "w", "tag"])
+        # Same adjacency order as the plain view: only attributes were added.
+        assert list(G.edges) == list(plain[kind].edges)
+
+    D = mesh.to_networkx("dual", attrs=["label", "n", "w", "tag", "both"])
+    for p in mesh.polygons():
+        assert D.nodes[p.id] == with_props(plain["dual"].nodes[p.id], p, ["label", "n"])
+    for u, w, k, d in plain["dual"].edges(keys=True, data=True):
+        assert D.edges[u, w, k] == with_props(d, mesh.edge(k), ["w", "tag", "both"])
+
+    # Python values: scalars of the dtype, tuples for shaped properties, str as stored.
+    a = t["a"].id
+    G = mesh.to_networkx(attrs=["t", "rgb", "both"])
+    assert G.nodes[a] == {"pos": (0.0, 0.0, 0.0), "t": 21.5, "rgb": (255, 0, 7), "both": "v"}
+    assert type(G.nodes[a]["rgb"][0]) is int and type(G.nodes[a]["t"]) is float
+    assert G.nodes[t["c"].id]["both"] == "ç"
+    assert "rgb" not in G.nodes[t["b"].id]  # unset, no default: absent, not None
+    assert G.edges[a, t["b"].id, edge_between(t["a"], t["b"]).id]["both"] is True
+    assert D.nodes[t["corner"].id]["n"] == (0.0, 1.0, 0.0) and D.nodes[t["pentagon"].id]["n"] == (0.0, 0.0, 1.0)
+    assert D.nodes[t["pentagon"].id]["label"] == "big" and D.nodes[t["corner"].id]["label"] == ""
+    H = mesh.to_networkx("halfedge", attrs=["uv"])
+    assert [d for *_, d in H.edges(data="uv") if d is not None] == [(0.25, 0.5)]
+    assert sum("uv" in d for *_, d in H.edges(data=True)) == 1
+
+
+def test_attrs_on_merged_parallel_edges(mesh):
+    a, b, c = (mesh.add_vertex((float(i), 0.0, 0.0)) for i in range(3))
+    e = [mesh.add_edge(a, b), mesh.add_edge(a, b), mesh.add_edge(b, a), mesh.add_edge(b, c)]
+    mesh.add_property("edge", "w", "float64")
+    mesh.add_property("edge", "k", "int64", default=7)
+    mesh.add_property("edge", "tag", "str")
+    mesh.add_property("edge", "v", "int64", shape=(2,))
+    with mesh.store.transaction():
+        e[1]["w"], e[2]["w"] = 4.5, 2.5  # e[0] unset: the smallest set value
+        e[2]["k"] = 3
+        e[2]["tag"], e[1]["tag"] = "two", "one"  # the lowest edge id that has one
+        e[2]["v"] = (1, 2)
+    G = mesh.to_networkx("graph", attrs=["w", "k", "tag", "v", "length"])
+    assert G.edges[a.id, b.id] == {
+        "multiplicity": 3, "edges": [e[0].id, e[1].id, e[2].id],
+        "w": 2.5, "k": 3, "tag": "one", "v": (1, 2), "length": 1.0,
+    }  # fmt: skip
+    assert G.edges[b.id, c.id] == {"multiplicity": 1, "edges": [e[3].id], "k": 7, "length": 1.0}
+    # The multigraph and the graph agree on weighted paths: networkx takes the lightest parallel edge.
+    M = mesh.to_networkx(attrs=["w", "k"])
+    assert nx.shortest_path_length(M, a.id, c.id, weight="k") == nx.shortest_path_length(G, a.id, c.id, weight="k")
+
+
+def test_attrs_unknown_and_refused_names(mesh, store):
+    t = right_triangle(mesh)
+    declare_everything(mesh, t)
+    for kind, name in [
+        ("multigraph", "nope"), ("graph", "nope"), ("halfedge", "nope"), ("dual", "nope"),
+        ("multigraph", "uv"), ("graph", "label"),  # kinds that do not go on these views
+        ("dual", "t"), ("dual", "rgb"), ("dual", "uv"), ("multigraph", "Length"),
+    ]:  # fmt: skip
+        with pytest.raises(hestore.PropertyNotFoundError, match=repr(name)) as caught:
+            mesh.to_networkx(kind, attrs=["t", name] if kind != "dual" else [name])
+        assert isinstance(caught.value, KeyError) and isinstance(caught.value, HestoreError)
+    # A name the view sets itself cannot be replaced.
+    mesh.add_property("vertex", "pos", "float64")
+    mesh.add_property("edge", "multiplicity", "int64")
+    with pytest.raises(InvalidInputError, match="'pos'"):
+        mesh.to_networkx(attrs=["pos"])
+    with pytest.raises(InvalidInputError, match="'multiplicity'"):
+        mesh.to_networkx("graph", attrs=["multiplicity"])
+    assert mesh.to_networkx(attrs=["multiplicity"]).number_of_edges() == 8  # fine on the multigraph
+    for bad in (7, [1], {"t": 1}, b"t"):
+        with pytest.raises(InvalidInputError, match="attrs"):
+            mesh.to_networkx(attrs=bad)
+    # An edge property named "length" is that property, not the derived length.
+    mesh.add_property("edge", "length", "int64", default=1)
+    G = mesh.to_networkx(attrs=["length"])
+    assert {d for *_, d in G.edges(data="length")} == {1}
+    store.delete_mesh("m")
+    with pytest.raises(hestore.MeshNotFoundError):
+        mesh.to_networkx(attrs=["t"])
+
+
+def test_attrs_cached_per_revision_and_committed_only(mesh, store):
+    t = right_triangle(mesh)
+    declare_everything(mesh, t)
+    a = t["a"].id
+    plain = mesh.to_networkx()
+    G = mesh.to_networkx(attrs=["t", "length"])
+    assert mesh.to_networkx(attrs=["t", "length"]) is G
+    assert mesh.to_networkx(attrs=("t", "length", "t")) is G  # the same names
+    assert mesh.to_networkx() is plain and "t" not in plain.nodes[a]  # the plain view is its own
+    L = mesh.to_networkx(attrs=["length", "t"])
+    assert L is not G and list(L.nodes[a]) == ["pos", "t"]  # "length" goes on edges only
+
+    revision = mesh.revision
+    t["a"]["t"] = -1.0  # a property write is an edit: a new revision, a new graph
+    assert mesh.revision == revision + 1
+    G2 = mesh.to_networkx(attrs=["t", "length"])
+    assert G2 is not G and G2.nodes[a]["t"] == -1.0 and G2.graph["revision"] == revision + 1
+    assert G.nodes[a]["t"] == 21.5  # handed out before: the old state
+    assert mesh.to_networkx() is not plain
+
+    # Inside a block, the committed values (as for the connectivity).
+    with store.transaction():
+        t["a"]["t"] = 99.0
+        mesh.add_property("vertex", "fresh", "int64", default=0)
+        inside = mesh.to_networkx(attrs=["t", "length"])
+        assert inside is G2 and inside.nodes[a]["t"] == -1.0
+        with pytest.raises(hestore.PropertyNotFoundError):
+            mesh.to_networkx(attrs=["fresh"])
+        store.session.caches.clear()
+        assert mesh.to_networkx(attrs=["t"]).nodes[a]["t"] == -1.0
+    assert mesh.to_networkx(attrs=["t", "fresh"]).nodes[a] == {"pos": (0.0, 0.0, 0.0), "t": 99.0, "fresh": 0}
+
+    # Removing a property: the next graph cannot have it.
+    mesh.remove_property("vertex", "t")
+    with pytest.raises(hestore.PropertyNotFoundError):
+        mesh.to_networkx(attrs=["t"])
+
+
+def test_attrs_cache_keeps_few_graphs(mesh, store):
+    right_triangle(mesh)
+    mesh.add_property("vertex", "t", "float64", default=0.0)
+    cache = store.session.caches.setdefault(graphs.CACHE, {})
+    for names in (["t"], ["length"], ["t", "length"], ["length", "t"], ["t", "length", "length"]):
+        mesh.to_networkx(attrs=names)
+    mesh.to_networkx()
+    mine = [k for k in cache if k[0] == mesh.id]
+    assert len(mine) == 1 + 4  # the plain graph and four lists of attrs
+    mesh.add_vertex()  # a new revision: the next graph drops those of the old one
+    mesh.to_networkx(attrs=["t"])
+    assert [k for k in cache if k[0] == mesh.id] == [(mesh.id, "multigraph", ("t",))]
+
+
+def test_attrs_halfedge_property_before_edge_property(mesh):
+    a, b = mesh.add_vertex((0, 0, 0)), mesh.add_vertex((0, 3, 4))
+    e = mesh.add_edge(a, b)
+    mesh.add_property("edge", "side", "str", default="edge")
+    mesh.add_property("halfedge", "side", "str")
+    h0, h1 = e.halfedges()
+    h0["side"] = "half"
+    H = mesh.to_networkx("halfedge", attrs=["side", "length"])
+    # The half-edge property wins where both are declared; unset without default: absent.
+    assert H.edges[h0.origin.id, h0.target.id, h0.id] == {
+        "polygon": None, "edge": e.id, "twin": h1.id, "side": "half", "length": 5.0,
+    }  # fmt: skip
+    assert "side" not in H.edges[h1.origin.id, h1.target.id, h1.id]
+    assert mesh.to_networkx(attrs=["side"]).edges[a.id, b.id, e.id]["side"] == "edge"

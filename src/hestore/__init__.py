@@ -64,6 +64,7 @@ __all__ = [
     "MeshArrays",
     "HestoreError",
     "ElementNotFoundError",
+    "PropertyNotFoundError",
     "MeshNotFoundError",
     "PropertyNotFoundError",
     "InvalidInputError",

@@ -8,8 +8,8 @@ unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
 Commands: ``demo``, ``import FILE``, ``export NAME FILE``, ``list``,
-``info NAME`` (`hestore.Mesh.stats`), ``check NAME``, ``graph NAME
-components|path A B|degree-histogram|export FILE`` (networkx, through
+``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
+components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, through
 `hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
 
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
@@ -43,6 +43,7 @@ import hestore
 from hestore import migrate, urls
 from hestore.errors import HestoreError, MeshExistsError
 from hestore.progress import ProgressBar
+from hestore.values import KINDS as PROPERTY_KINDS
 
 __all__ = ["DEFAULT_URL", "main", "build_parser"]
 
@@ -199,17 +200,64 @@ def _info_value(key: str, value: object, info: dict) -> str:
     return str(value)
 
 
+def _properties(mesh: hestore.Mesh) -> list[dict]:
+    """The mesh's properties (`hestore.Mesh.properties`), kind by kind, each in the order declared.
+
+    Each as ``kind``, ``name``, ``dtype``, ``shape`` (a list: ``[]`` or
+    ``[k]``) and ``default`` (None: no default; a list for shaped ones).
+    """
+    return [
+        {"kind": p.kind, "name": p.name, "dtype": p.dtype, "shape": list(p.shape), "default": p.default}
+        for kind in PROPERTY_KINDS
+        for p in mesh.properties(kind).values()
+    ]
+
+
+def _property_lines(properties: list[dict]) -> list[str]:
+    """One aligned line per property: kind, name, dtype, shape, default."""
+    rows = [
+        (
+            p["kind"],
+            p["name"],
+            p["dtype"],
+            str(tuple(p["shape"])),
+            "no default" if p["default"] is None else f"default {p['default']!r}",
+        )
+        for p in properties
+    ]
+    widths = [max(len(row[c]) for row in rows) for c in range(4)]
+    return ["  " + "  ".join([*(f"{cell:<{w}}" for cell, w in zip(row, widths)), row[4]]) for row in rows]
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     with _open(args) as store:
-        info = _info(store.mesh(args.name))
+        mesh = store.mesh(args.name)
+        info = _info(mesh)
+        properties = _properties(mesh)
     if args.json:
+        # Only a mesh with properties has the key, so the figures of one without stay as they were.
+        if properties:
+            info["properties"] = [{**p, "default": _json_default(p["default"])} for p in properties]
         print(json.dumps(info, indent=2))
         return 0
     labels = {key: _INFO_LABELS.get(key, key) for key in info}
     width = max(len(label) for label in labels.values()) + 1
     for key, value in info.items():
         print(f"{labels[key] + ':':<{width}}  {_info_value(key, value, info)}")
+    if properties:
+        print(f"{'properties:':<{width}}  {len(properties)}")
+        for line in _property_lines(properties):
+            print(line)
     return 0
+
+
+def _json_default(value: object) -> object:
+    """A property's default as JSON holds it: tuples as lists, NaN as null."""
+    if isinstance(value, tuple):
+        return [_json_default(v) for v in value]
+    if isinstance(value, float) and value != value:
+        return None
+    return value
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -260,16 +308,90 @@ def _cmd_graph_components(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The derived weight of ``graph … path --weight``: `hestore.graphs.LENGTH`, repeated so
+#: that building the parser does not import networkx.
+_LENGTH = "length"
+
+
+def _weight_problem(mesh: hestore.Mesh, weight: str) -> str | None:
+    """Why ``--weight`` cannot be ``weight`` for this mesh, or None when it can.
+
+    It can be ``length`` or a scalar ``int64`` / ``float64`` edge property
+    (an edge property named ``length`` is that property, as in
+    `hestore.Mesh.to_networkx`).
+    """
+    edge = mesh.properties("edge")
+    numeric = [name for name, p in edge.items() if p.dtype in ("int64", "float64") and not p.shape]
+    takes = ", ".join([_LENGTH] + [n for n in numeric if n != _LENGTH])
+    prop = edge.get(weight)
+    if prop is None:
+        if weight == _LENGTH:
+            return None
+        return f"mesh {mesh.name!r} has no edge property named {weight!r}; --weight takes: {takes}"
+    if prop.dtype not in ("int64", "float64") or prop.shape:
+        shaped = f" of shape {prop.shape}" if prop.shape else ""
+        return (
+            f"edge property {weight!r} of mesh {mesh.name!r} is {prop.dtype}{shaped}, not a number; "
+            f"--weight takes: {takes}"
+        )
+    return None
+
+
+class _Unweighed(Exception):
+    """An edge the weighted path search needs has no usable weight."""
+
+
+def _weigher(graph, weight: str):
+    """networkx's weight function for a multigraph: the lightest of the parallel edges ``u``-``v``.
+
+    An edge without a weight (``length`` None: an end without a position; a
+    property without a default, unset), with NaN or with a negative weight
+    raises `_Unweighed` with the reason — only when the search needs it.
+    """
+
+    def weigh(u, v, keydict: dict):
+        best = None
+        for key, data in keydict.items():
+            w = data.get(weight)
+            if w is None:
+                if weight in data:  # the derived length, None: an end without a position
+                    unplaced = u if graph.nodes[u]["pos"] is None else v
+                    raise _Unweighed(f"edge {key} has no length: vertex {unplaced} has no position")
+                raise _Unweighed(f"edge {key} has no value of property {weight!r}, which has no default")
+            if w != w:
+                raise _Unweighed(f"edge {key} has {weight} NaN")
+            if w < 0:
+                raise _Unweighed(
+                    f"edge {key} has a negative {weight} ({w}); a shortest path needs weights of 0 or more"
+                )
+            best = w if best is None else min(best, w)
+        return best
+
+    return weigh
+
+
+def _number(x: float | int) -> str:
+    return str(x) if isinstance(x, int) else f"{x:.12g}"
+
+
 def _cmd_graph_path(args: argparse.Namespace) -> int:
     import networkx as nx
 
+    weight = args.weight
     with _open(args) as store:
         mesh = store.mesh(args.name)
         for i in (args.a, args.b):
             mesh.vertex(i)  # an unknown id: ElementNotFoundError, one line, exit 2
-        graph = mesh.to_networkx("multigraph")
+        if weight is not None:
+            problem = _weight_problem(mesh, weight)
+            if problem:
+                return _error(problem)
+        graph = mesh.to_networkx("multigraph", attrs=None if weight is None else [weight])
+    weigh = None if weight is None else _weigher(graph, weight)
     try:
-        path = nx.shortest_path(graph, args.a, args.b)
+        path = nx.shortest_path(graph, args.a, args.b, weight=weigh)
+    except _Unweighed as exc:
+        return _error(f"cannot weigh the paths of {args.name!r} by {weight}: {exc}")
     except nx.NetworkXNoPath:
         print(
             f"no path from vertex {args.a} to vertex {args.b} in {args.name!r}: "
@@ -278,6 +400,9 @@ def _cmd_graph_path(args: argparse.Namespace) -> int:
         return 1
     print("path: " + " ".join(str(v) for v in path))
     print(f"length: {_count(len(path) - 1, 'edge')}")
+    if weight is not None:
+        total = sum(weigh(u, v, graph[u][v]) for u, v in zip(path, path[1:]))
+        print(f"total {weight}: {_number(total)}")
     return 0
 
 
@@ -408,7 +533,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Print a mesh's name, revision and policy, and every field of its "
         "hestore.Mesh.stats(): counts (with self-loops, parallel edges and polygon sizes), "
         "boundary and wire edges, boundary loops, components, Euler characteristic, genus, "
-        "pinched vertices, whether it is closed and manifold.",
+        "pinched vertices, whether it is closed and manifold; then its properties, if it has "
+        "any: kind, name, dtype, shape and default of each.",
     )
     info.add_argument("name", metavar="NAME", help="the mesh to describe")
     info.add_argument("--json", action="store_true", help="print a JSON object instead of text")
@@ -440,12 +566,21 @@ def build_parser() -> argparse.ArgumentParser:
     components.set_defaults(func=_cmd_graph_components)
     path = graph_commands.add_parser(
         "path",
-        help="a shortest path (fewest edges) between vertices A and B",
-        description="Print a shortest path, in edges, from vertex A to vertex B: the vertex ids "
-        "along it and its length. Exit status 1 when there is none.",
+        help="a shortest path (fewest edges, or least total --weight) between vertices A and B",
+        description="Print a shortest path from vertex A to vertex B: the vertex ids along it "
+        "and its length in edges; with --weight, the path of least total weight and that total. "
+        "Exit status 1 when there is none.",
     )
     path.add_argument("a", metavar="A", type=int, help="the id of the first vertex")
     path.add_argument("b", metavar="B", type=int, help="the id of the last vertex")
+    path.add_argument(
+        "--weight",
+        metavar="W",
+        help="weigh each edge by W: 'length' (the Euclidean length, from the positions of its "
+        "ends) or the name of a numeric (int64 or float64, unshaped) edge property; an edge the "
+        "search meets without a weight (an end without a position, a property unset without a "
+        "default) or with a negative one is an error (default: every edge weighs 1)",
+    )
     path.set_defaults(func=_cmd_graph_path)
     histogram = graph_commands.add_parser(
         "degree-histogram",

@@ -6,7 +6,10 @@ edges kept), ``"graph"`` (parallel edges merged), ``"halfedge"`` (one directed
 edge per half-edge) and ``"dual"`` (polygons, joined across the edges between
 them). Each is a plain, frozen networkx graph of the mesh's *committed* state,
 cached per store, mesh and kind, and rebuilt only when the mesh's committed
-revision has changed.
+revision has changed. ``attrs`` adds properties (and the derived edge
+``length``) as node and edge attributes: each property's values are read as
+one column, in the same snapshot as the connectivity, and set on the
+attribute dicts the builders make.
 
 How a graph is made: the columns it needs are read in bulk, in one snapshot
 together with the revision (`hestore.columns.read_columns`); the grouping of
@@ -37,31 +40,37 @@ from __future__ import annotations
 
 import gc
 from contextlib import contextmanager
+from dataclasses import dataclass
 from itertools import compress, islice
-from typing import TYPE_CHECKING, Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator
 
 import networkx as nx
 import numpy as np
 import sqlalchemy as sa
 
-from hestore import schema
+from hestore import schema, values
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError
+from hestore.errors import InvalidInputError, PropertyNotFoundError
+from hestore.values import Property
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["KINDS", "to_networkx"]
+__all__ = ["KINDS", "LENGTH", "to_networkx"]
 
 #: The graph kinds `to_networkx` makes, the default first.
 KINDS = ("multigraph", "graph", "halfedge", "dual")
 
-#: The key of the graphs in `hestore.session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``.
+#: The derived edge attribute of ``attrs``: the Euclidean length of the edge, from its end points' positions.
+LENGTH = "length"
+
+#: The key of the graphs in `hestore.session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``,
+#: and ``{(mesh id, kind, attrs): (revision, graph)}`` for graphs with property attributes.
 CACHE = "graphs"
 
 
-def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
+def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None) -> nx.Graph:
     """A frozen networkx graph of the mesh's committed state.
 
     Parameters
@@ -94,6 +103,37 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
             the two ends) and ``vertices`` (the origins of ``h0`` and
             ``h1``, the mesh edge's end points). A polygon that meets itself
             across an edge has a self-loop.
+    attrs : list of str, optional
+        Names of properties (SPEC §3.2) to put on the graph as attributes,
+        and the derived `LENGTH`, ``"length"`` (a single string is one
+        name). Each name goes where its property lives:
+
+        - nodes take the properties of the node kind: vertex properties
+          (``"multigraph"``, ``"graph"``, ``"halfedge"``), polygon
+          properties (``"dual"``);
+        - edges take the edge properties; the ``"halfedge"`` kind's edges
+          take the half-edge properties and the edge properties (each
+          half-edge gets its edge's value; where a half-edge and an edge
+          property share the name, the half-edge property);
+        - a name that is both a node and an edge property goes on both;
+        - ``"length"``, unless an edge (or, for ``"halfedge"``, half-edge)
+          property has that name, puts on every edge the Euclidean distance
+          between the positions of its two end points: a float, 0.0 for a
+          self-loop, None where an end has no position (networkx's weighted
+          algorithms take a weight of None as "no such edge"). The dual's
+          edges get the length of their primal edge (the boundary the two
+          polygons share), not a distance between the polygons.
+
+        Values are Python scalars (``float``, ``int``, ``bool``, ``str``),
+        tuples for shaped properties. An element without a value, of a
+        property without a default, has no such attribute at all (not
+        None), so ``d.get(name)`` and networkx's default weight of 1 apply.
+        In the ``"graph"`` kind an edge stands for all the parallel edges
+        it merges: a scalar ``int64`` or ``float64`` property gives the
+        smallest of their values (as networkx's shortest paths on the
+        multigraph use the lightest parallel edge), any other property the
+        value of the lowest edge id that has one, and ``"length"`` their
+        common length (they join the same two vertices).
 
     Returns
     -------
@@ -108,7 +148,12 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
     Raises
     ------
     InvalidInputError
-        ``kind`` is not one of `KINDS`.
+        ``kind`` is not one of `KINDS`; ``attrs`` is not a list of names;
+        a name in ``attrs`` is one of the view's own attributes where it
+        would go (``pos``, ``halfedges``, ``edges``, …).
+    PropertyNotFoundError
+        A name in ``attrs`` is neither a property of a kind that goes on
+        this graph nor ``"length"``.
     MeshNotFoundError
         The mesh has been deleted.
     InvariantViolationError
@@ -124,8 +169,14 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
     cached.
 
     While the committed revision is unchanged, the same graph object is
-    returned again (one per kind), so do not modify its attribute dicts.
-    To edit a graph, copy it: ``nx.MultiGraph(G)``.
+    returned again (one per kind and list of ``attrs``), so do not modify
+    its attribute dicts. To edit a graph, copy it: ``nx.MultiGraph(G)``.
+    Writing a property value is an edit like any other: it commits a new
+    revision, and the next call builds a new graph.
+
+    ``attrs`` are read set-based, one statement per property, in the same
+    snapshot as the connectivity (so, committed values only); without
+    ``attrs`` nothing more is read or built than before.
 
     Examples
     --------
@@ -165,25 +216,72 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph") -> nx.Graph:
     >>> D = mesh.to_networkx("dual")
     >>> list(D.nodes(data=True)), D.number_of_edges()
     ([(0, {'halfedge': 0})], 0)
+
+    Properties and the derived ``"length"`` as attributes, for a weighted
+    shortest path. From ``a`` to ``c`` along the legs of a right triangle
+    (9 + 12) or along its hypotenuse (15), cut into three edges of 5:
+
+    >>> w = hestore.open("sqlite://").create_mesh("w")
+    >>> xyz = [(0, 0, 0), (9, 0, 0), (9, 12, 0), (6, 8, 0), (3, 4, 0)]
+    >>> a, b, c, q, p = (w.add_vertex(position) for position in xyz)
+    >>> pentagon = w.add_polygon([a, b, c, q, p])
+    >>> _ = w.add_property("vertex", "label", "str")
+    >>> a["label"] = "start"
+    >>> G = w.to_networkx(attrs=["length", "label"])
+    >>> nx.shortest_path(G, a.id, c.id)  # the fewest edges
+    [0, 1, 2]
+    >>> nx.shortest_path(G, a.id, c.id, weight="length")  # the shortest
+    [0, 4, 3, 2]
+    >>> nx.shortest_path_length(G, a.id, c.id, weight="length")
+    15.0
+    >>> G.nodes[a.id], G.nodes[b.id]  # b has no label (and no default): no attribute
+    ({'pos': (0.0, 0.0, 0.0), 'label': 'start'}, {'pos': (9.0, 0.0, 0.0)})
+    >>> G.edges[a.id, b.id, 0]
+    {'halfedges': (0, 1), 'polygons': (0, None), 'length': 9.0}
     """
     if kind not in KINDS:
         raise InvalidInputError(f"unknown graph kind {kind!r}; the kinds are {', '.join(map(repr, KINDS))}")
+    names = _names(attrs)
+    key = (mesh.id, kind, names) if names else (mesh.id, kind)
     with mesh.session.snapshot(mesh.ref, committed=True) as snap:
         # Only an in-memory SQLite store inside a block reads its own
         # connection there, and so sees uncommitted edits: a graph of those
         # must not be cached under a revision number a rollback may reuse.
         cache = mesh.session.caches.setdefault(CACHE, {}) if snap.isolated else {}
         revision = snap.revision
-        hit = cache.get((mesh.id, kind))
+        hit = cache.get(key)
         if hit is not None and hit[0] == revision:
             return hit[1]
-        columns = snap.columns(_REQUESTS[kind]())
+        plan = _plan(mesh, snap, kind, names) if names else None
+        requests = _REQUESTS[kind]()
+        used = len(requests)
+        if plan is not None and plan.length and kind == "dual":
+            requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
+        columns = snap.columns(requests)
+        extra = _attributes(snap, mesh.id, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
     with _gc_paused():
-        G = _BUILDERS[kind](*columns)
+        G = _BUILDERS[kind](*columns[:used], extra=extra)
     G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
     nx.freeze(G)
-    cache[(mesh.id, kind)] = (revision, G)
+    _remember(cache, key, revision, G)
     return G
+
+
+#: How many graphs with ``attrs`` the cache keeps per mesh and kind (the most recently built).
+_ATTRS_VARIANTS = 4
+
+
+def _remember(cache: dict, key: tuple, revision: int, G: nx.Graph) -> None:
+    """Cache ``G``; drop the mesh's graphs of other revisions (never hit again) and old ``attrs`` variants."""
+    mesh_id, kind = key[0], key[1]
+    stale = [k for k, (r, _) in cache.items() if k[0] == mesh_id and r != revision]
+    for k in stale:
+        del cache[k]
+    if len(key) == 3:
+        variants = [k for k in cache if len(k) == 3 and k[:2] == (mesh_id, kind) and k != key]
+        for k in variants[: max(0, len(variants) - _ATTRS_VARIANTS + 1)]:
+            del cache[k]
+    cache[key] = (revision, G)
 
 
 # --------------------------------------------------------------------------
@@ -205,12 +303,280 @@ def _polygon_columns() -> tuple:
     return (p, [p.c.id, p.c.halfedge])
 
 
+# The lists are new on each call: `to_networkx` may append to one.
 _REQUESTS: dict[str, Callable[[], list]] = {
     "multigraph": lambda: [position_request(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
     "graph": lambda: [position_request(), _halfedge_columns("origin", "twin"), _edge_columns()],
     "halfedge": lambda: [position_request(), _halfedge_columns("origin", "twin", "edge", "polygon")],
     "dual": lambda: [_polygon_columns(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
 }
+
+
+# --------------------------------------------------------------------------
+# Attributes from properties (``attrs``)
+
+#: Per kind: the element kind whose properties go on nodes, and those whose
+#: properties go on edges (the first that has the name wins).
+_TARGETS = {
+    "multigraph": ("vertex", ("edge",)),
+    "graph": ("vertex", ("edge",)),
+    "halfedge": ("vertex", ("halfedge", "edge")),
+    "dual": ("polygon", ("edge",)),
+}
+
+#: Per kind: the node and edge attributes the view sets itself; a property may not replace them.
+_OWN = {
+    "multigraph": ({"pos"}, {"halfedges", "polygons"}),
+    "graph": ({"pos"}, {"multiplicity", "edges"}),
+    "halfedge": ({"pos"}, {"polygon", "edge", "twin"}),
+    "dual": ({"halfedge"}, {"halfedges", "vertices"}),
+}
+
+#: The value of an element that has none (a property without a default, unset): no attribute.
+_ABSENT = object()
+
+
+@dataclass(frozen=True)
+class _Column:
+    """One attribute, per row of the elements it is read for.
+
+    ``values`` are Python values (tuples for shaped properties), `_ABSENT`
+    where there is none; ``present`` says where there is one; ``numeric``
+    holds the raw values of a scalar ``int64`` / ``float64`` property (the
+    ``"graph"`` kind takes their minimum over parallel edges), else None.
+    """
+
+    name: str
+    values: list
+    present: np.ndarray
+    numeric: np.ndarray | None = None
+
+    def take(self, rows: np.ndarray) -> "_Column":
+        """The column of the elements at ``rows``."""
+        numeric = None if self.numeric is None else self.numeric[rows]
+        return _Column(self.name, list(map(self.values.__getitem__, rows.tolist())), self.present[rows], numeric)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Which properties go on nodes and edges, and whether ``length`` goes on edges, in ``attrs`` order."""
+
+    nodes: tuple[Property, ...]
+    edges: tuple[Property | str, ...]  # a Property, or LENGTH
+
+    @property
+    def length(self) -> bool:
+        return LENGTH in self.edges
+
+
+@dataclass(frozen=True)
+class _Attributes:
+    """The columns a builder puts on nodes (per node row) and on edges (per edge, or half-edge, row)."""
+
+    nodes: tuple[_Column, ...] = ()
+    edges: tuple[_Column, ...] = ()
+
+
+_NO_ATTRIBUTES = _Attributes()
+
+
+def _names(attrs: object) -> tuple[str, ...]:
+    """``attrs`` as a tuple of distinct names, in their order."""
+    if attrs is None:
+        return ()
+    if isinstance(attrs, str):
+        attrs = [attrs]
+    what = "attrs is a list of property names (or 'length')"
+    if isinstance(attrs, (bytes, dict)) or not hasattr(attrs, "__iter__"):
+        raise InvalidInputError(f"{what}, not {type(attrs).__name__} {attrs!r}")
+    names = list(attrs)
+    for name in names:
+        if not isinstance(name, str):
+            raise InvalidInputError(f"{what}; {name!r} is not a name")
+    return tuple(dict.fromkeys(names))
+
+
+def _plan(mesh: "Mesh", snap, kind: str, names: tuple[str, ...]) -> _Plan:
+    """Resolve ``names`` against the properties of the mesh in this snapshot."""
+    p = schema.properties
+    cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+    catalogue = {}
+    for row in snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh.id)):
+        prop = values.property_of(*row)
+        catalogue[prop.kind, prop.name] = prop
+    node_kind, edge_kinds = _TARGETS[kind]
+    own_nodes, own_edges = _OWN[kind]
+    nodes: list[Property] = []
+    edges: list[Property | str] = []
+    for name in names:
+        node = catalogue.get((node_kind, name))
+        edge = next((catalogue[k, name] for k in edge_kinds if (k, name) in catalogue), None)
+        if edge is None and name == LENGTH:
+            edge = LENGTH
+        if node is None and edge is None:
+            *first, last = (node_kind, *edge_kinds)
+            kinds = f"{', '.join(first)} or {last}"
+            raise PropertyNotFoundError(
+                f"mesh {mesh.name!r} has no {kinds} property named {name!r} for its {kind} view; "
+                f"attrs takes the names of such properties and {LENGTH!r}"
+            )
+        for found, own, where in ((node, own_nodes, "node"), (edge, own_edges, "edge")):
+            if found is not None and name in own:
+                raise InvalidInputError(
+                    f"property {name!r} cannot be a {where} attribute of the {kind} view: "
+                    f"the view sets {name!r} itself"
+                )
+        if node is not None:
+            nodes.append(node)
+        if edge is not None:
+            edges.append(edge)
+    return _Plan(tuple(nodes), tuple(edges))
+
+
+def _null_mask(table: sa.Table, width: int):
+    """An int column whose bit c says that ``v{c}`` is NULL (a NaN float)."""
+    total = None
+    for c in range(width):
+        bit = sa.case((table.c[f"v{c}"].is_(None), 1 << c), else_=0)
+        total = bit if total is None else total + bit
+    return total
+
+
+def _property_column(snap, mesh_id: int, prop: Property, ids: np.ndarray) -> _Column:
+    """The values of ``prop`` for the elements ``ids`` (sorted), read set-based in the snapshot.
+
+    The same rows `hestore.Mesh.property_array` reads (one statement), read
+    here in the graph's own snapshot: inside a block the graph shows
+    committed data, and so must its attributes.
+    """
+    table = values.table_of(prop.dtype)
+    mine = [table.c.property == prop.id]
+    if prop.dtype == "str":
+        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh_id, *mine)
+        rows = snap.rows(stmt)
+        row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
+        row_parts = np.zeros(len(rows), dtype=np.int64)
+        components = [np.array([r[2] for r in rows], dtype=object)]
+    else:
+        width = min(prop.size or 1, values.WIDTH)
+        comps = [sa.func.coalesce(table.c[f"v{c}"], 0) for c in range(width)]
+        if prop.dtype == "float64":
+            comps = [sa.cast(c, sa.Float(53)) for c in comps] + [_null_mask(table, width)]
+        [[row_ids, row_parts, *components]] = snap.columns([(table, [table.c.id, table.c.part, *comps], mine)])
+        if prop.dtype == "float64":
+            nulls = components.pop()
+            for c in range(width):
+                components[c][(nulls >> c) & 1 == 1] = np.nan
+    at = np.searchsorted(ids, row_ids)
+    inside = at < len(ids)
+    live = np.zeros(len(row_ids), dtype=bool)
+    live[inside] = ids[at[inside]] == row_ids[inside]
+    array = values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
+    return _as_column(prop, array)
+
+
+def _as_column(prop: Property, array: np.ndarray) -> _Column:
+    """A `_Column` of a `hestore.Mesh.property_array`-style array (masked where unset without default)."""
+    n = len(array)
+    if isinstance(array, np.ma.MaskedArray):
+        mask = np.ma.getmaskarray(array).reshape(n, -1)
+        present = ~mask.any(axis=1) if mask.shape[1] else np.ones(n, dtype=bool)
+        raw = array.data
+    else:
+        present = np.ones(n, dtype=bool)
+        raw = array
+    out = raw.tolist()
+    if prop.shape:
+        out = list(map(tuple, out))
+    for i in np.flatnonzero(~present).tolist():
+        out[i] = _ABSENT
+    numeric = raw if not prop.shape and prop.dtype in ("int64", "float64") else None
+    return _Column(prop.name, out, present, numeric)
+
+
+def _length_column(vertices, u: np.ndarray, v: np.ndarray) -> _Column:
+    """``length`` of edges between the vertex rows ``u`` and ``v``: None where an end has no position."""
+    _ids, x, y, z, unplaced = vertices
+    xyz = np.stack([x, y, z], axis=1)
+    lengths = np.sqrt(((xyz[u] - xyz[v]) ** 2).sum(axis=1)).tolist()
+    for i in np.flatnonzero((unplaced[u] != 0) | (unplaced[v] != 0)).tolist():
+        lengths[i] = None
+    return _Column(LENGTH, lengths, np.ones(len(lengths), dtype=bool))
+
+
+def _attributes(snap, mesh_id: int, kind: str, plan: _Plan, columns: list) -> _Attributes:
+    """The columns of ``plan``, per node row and per edge (half-edge) row of the builder's columns."""
+    node_ids = columns[0][0]
+    nodes = tuple(_property_column(snap, mesh_id, prop, node_ids) for prop in plan.nodes)
+    halfedges = columns[1]
+    h_id, h_origin, h_twin = halfedges[0], halfedges[1], halfedges[2]
+    edges = []
+    for item in plan.edges:
+        if item == LENGTH:
+            vertices = columns[-1] if kind == "dual" else columns[0]
+            origin = _origin_rows(vertices[0], h_id, h_origin)
+            if kind == "halfedge":
+                twin = _rows(h_id, h_twin, "half-edge", h_id, "halfedge", "twin")
+                edges.append(_length_column(vertices, origin, origin[twin]))
+            else:
+                _h0, _h1, r0, r1 = _edge_ends(h_id, h_twin, *columns[2])
+                edges.append(_length_column(vertices, origin[r0], origin[r1]))
+        elif kind == "halfedge" and item.kind == "edge":
+            # Each half-edge takes its edge's value.
+            h_edge = halfedges[3]
+            edge_ids = np.unique(h_edge)
+            column = _property_column(snap, mesh_id, item, edge_ids)
+            edges.append(column.take(np.searchsorted(edge_ids, h_edge)))
+        else:
+            edges.append(_property_column(snap, mesh_id, item, h_id if kind == "halfedge" else columns[2][0]))
+    return _Attributes(nodes, tuple(edges))
+
+
+def _apply(dicts: list[dict], columns: Iterable[_Column], rows: np.ndarray | None = None) -> None:
+    """Set each column's value in ``dicts[i]``, taken from row ``rows[i]`` (row ``i`` without ``rows``)."""
+    for column in columns:
+        taken = column if rows is None else column.take(rows)
+        name = column.name
+        if taken.present.all():
+            for d, value in zip(dicts, taken.values):
+                d[name] = value
+        else:
+            for d, value in zip(dicts, taken.values):
+                if value is not _ABSENT:
+                    d[name] = value
+
+
+def _merged(column: _Column, order: np.ndarray, starts: np.ndarray) -> _Column:
+    """One value per run of parallel edges (``order``: the edge rows sorted by run, ``starts``: where runs start).
+
+    A scalar number: the smallest value of the run; anything else: the value
+    of its first edge (the lowest id) that has one.
+    """
+    n = len(starts)
+    present = column.present[order]
+    if n == 0:
+        return _Column(column.name, [], np.zeros(0, dtype=bool))
+    if column.numeric is not None:
+        raw = column.numeric[order]
+        fill = np.inf if raw.dtype.kind == "f" else np.iinfo(np.int64).max
+        smallest = np.minimum.reduceat(np.where(present, raw, fill), starts)
+        found = np.logical_or.reduceat(present, starts)
+        out = smallest.tolist()
+    else:
+        first_of_run = np.zeros(len(order), dtype=bool)
+        first_of_run[starts] = True
+        run = np.cumsum(first_of_run) - 1
+        have = np.flatnonzero(present)
+        runs, first = np.unique(run[have], return_index=True)
+        found = np.zeros(n, dtype=bool)
+        found[runs] = True
+        out = [_ABSENT] * n
+        picked = order[have[first]].tolist()
+        for r, row in zip(runs.tolist(), picked):
+            out[r] = column.values[row]
+    for i in np.flatnonzero(~found).tolist():
+        out[i] = _ABSENT
+    return _Column(column.name, out, found)
 
 
 # --------------------------------------------------------------------------
@@ -290,14 +656,22 @@ def _adjacency(
 
 
 def _undirected(
-    nodes: list, attrs: list, u: np.ndarray, v: np.ndarray, keys: np.ndarray, make_data, multi: bool
+    nodes: list,
+    attrs: list,
+    u: np.ndarray,
+    v: np.ndarray,
+    keys: np.ndarray,
+    make_data,
+    multi: bool,
+    merge: tuple[_Column, ...] = (),
 ) -> nx.Graph:
     """A MultiGraph (or a Graph, parallel edges merged) of edges between node rows ``u`` and ``v``.
 
     Runs of edges with the same ends become one keydict (Graph: one datadict
     counting them). Each node's neighbours come in the order of their first
     edge key, and each keydict's keys ascending: the dicts ``add_nodes_from``
-    and ``add_edges_from`` in key order would make.
+    and ``add_edges_from`` in key order would make. ``merge``: columns (per
+    edge row of ``u``, ``v``) that the Graph's merged edges take (`_merged`).
     """
     order, a, b, skeys, first = _groups(np.minimum(u, v), np.maximum(u, v), keys)
     key_list = skeys.tolist()
@@ -308,6 +682,7 @@ def _undirected(
         sizes = np.diff(np.append(starts, len(a))).tolist()
         ids = iter(key_list)
         values = [{"multiplicity": c, "edges": list(islice(ids, c))} for c in sizes]
+        _apply(values, (_merged(column, order, starts) for column in merge))
     ga, gb, gk = a[starts], b[starts], skeys[starts]
     # Both directions share the run's dict, as networkx's add_edge does; a
     # self-loop is a single entry.
@@ -337,8 +712,9 @@ def _origin_rows(v_id, h_id, h_origin) -> np.ndarray:
     return _rows(v_id, h_origin, "vertex", h_id, "halfedge", "origin")
 
 
-def _multigraph(vertices, halfedges, edges) -> nx.MultiGraph:
+def _multigraph(vertices, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.MultiGraph:
     nodes, attrs = _vertex_nodes(*vertices)
+    _apply(attrs, extra.nodes)
     h_id, h_origin, h_twin, h_polygon = halfedges
     origin = _origin_rows(vertices[0], h_id, h_origin)
     h0, h1, r0, r1 = _edge_ends(h_id, h_twin, *edges)
@@ -347,23 +723,27 @@ def _multigraph(vertices, halfedges, edges) -> nx.MultiGraph:
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
         sides = zip(_or_none(p0[order]), _or_none(p1[order]))
-        return [{"halfedges": hs, "polygons": ps} for hs, ps in zip(ends, sides)]
+        out = [{"halfedges": hs, "polygons": ps} for hs, ps in zip(ends, sides)]
+        _apply(out, extra.edges, order)
+        return out
 
     return _undirected(nodes, attrs, origin[r0], origin[r1], edges[0], data, multi=True)
 
 
-def _graph(vertices, halfedges, edges) -> nx.Graph:
+def _graph(vertices, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.Graph:
     nodes, attrs = _vertex_nodes(*vertices)
+    _apply(attrs, extra.nodes)
     h_id, h_origin, h_twin = halfedges
     origin = _origin_rows(vertices[0], h_id, h_origin)
     _h0, _h1, r0, r1 = _edge_ends(h_id, h_twin, *edges)
-    return _undirected(nodes, attrs, origin[r0], origin[r1], edges[0], None, multi=False)
+    return _undirected(nodes, attrs, origin[r0], origin[r1], edges[0], None, multi=False, merge=extra.edges)
 
 
-def _dual(polygons, halfedges, edges) -> nx.MultiGraph:
+def _dual(polygons, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.MultiGraph:
     p_id, p_he = polygons
     nodes = p_id.tolist()
     attrs = [{"halfedge": h} for h in p_he.tolist()]
+    _apply(attrs, extra.nodes)
     h_id, h_origin, h_twin, h_polygon = halfedges
     h0, h1, r0, r1 = _edge_ends(h_id, h_twin, *edges)
     inner = np.flatnonzero((h_polygon[r0] >= 0) & (h_polygon[r1] >= 0))
@@ -375,13 +755,16 @@ def _dual(polygons, halfedges, edges) -> nx.MultiGraph:
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
         corners = zip(o0[order].tolist(), o1[order].tolist())
-        return [{"halfedges": hs, "vertices": vs} for hs, vs in zip(ends, corners)]
+        out = [{"halfedges": hs, "vertices": vs} for hs, vs in zip(ends, corners)]
+        _apply(out, extra.edges, inner[order])
+        return out
 
     return _undirected(nodes, attrs, left, right, e_id, data, multi=True)
 
 
-def _halfedge(vertices, halfedges) -> nx.MultiDiGraph:
+def _halfedge(vertices, halfedges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.MultiDiGraph:
     nodes, attrs = _vertex_nodes(*vertices)
+    _apply(attrs, extra.nodes)
     h_id, h_origin, h_twin, h_edge, h_polygon = halfedges
     origin = _origin_rows(vertices[0], h_id, h_origin)
     target = origin[_rows(h_id, h_twin, "half-edge", h_id, "halfedge", "twin")]
@@ -390,6 +773,7 @@ def _halfedge(vertices, halfedges) -> nx.MultiDiGraph:
         {"polygon": p, "edge": e, "twin": t}
         for p, e, t in zip(_or_none(h_polygon[order]), h_edge[order].tolist(), h_twin[order].tolist())
     ]
+    _apply(data, extra.edges, order)
     keydicts = _keydicts(keys.tolist(), data, first)
     starts = np.flatnonzero(first)
     ga, gb, gk = a[starts], b[starts], keys[starts]
