@@ -66,7 +66,6 @@ __all__ = [
     "ElementNotFoundError",
     "PropertyNotFoundError",
     "MeshNotFoundError",
-    "PropertyNotFoundError",
     "InvalidInputError",
     "MeshExistsError",
     "TopologyError",

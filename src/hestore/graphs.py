@@ -48,7 +48,8 @@ import networkx as nx
 import numpy as np
 import sqlalchemy as sa
 
-from hestore import schema, values
+from hestore import properties as props
+from hestore import schema
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError
@@ -258,7 +259,7 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
         if plan is not None and plan.length and kind == "dual":
             requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
         columns = snap.columns(requests)
-        extra = _attributes(snap, mesh.id, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
     with _gc_paused():
         G = _BUILDERS[kind](*columns[:used], extra=extra)
     G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
@@ -398,12 +399,7 @@ def _names(attrs: object) -> tuple[str, ...]:
 
 def _plan(mesh: "Mesh", snap, kind: str, names: tuple[str, ...]) -> _Plan:
     """Resolve ``names`` against the properties of the mesh in this snapshot."""
-    p = schema.properties
-    cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
-    catalogue = {}
-    for row in snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh.id)):
-        prop = values.property_of(*row)
-        catalogue[prop.kind, prop.name] = prop
+    catalogue = props.catalogue_in(snap, mesh.id)
     node_kind, edge_kinds = _TARGETS[kind]
     own_nodes, own_edges = _OWN[kind]
     nodes: list[Property] = []
@@ -431,48 +427,6 @@ def _plan(mesh: "Mesh", snap, kind: str, names: tuple[str, ...]) -> _Plan:
         if edge is not None:
             edges.append(edge)
     return _Plan(tuple(nodes), tuple(edges))
-
-
-def _null_mask(table: sa.Table, width: int):
-    """An int column whose bit c says that ``v{c}`` is NULL (a NaN float)."""
-    total = None
-    for c in range(width):
-        bit = sa.case((table.c[f"v{c}"].is_(None), 1 << c), else_=0)
-        total = bit if total is None else total + bit
-    return total
-
-
-def _property_column(snap, mesh_id: int, prop: Property, ids: np.ndarray) -> _Column:
-    """The values of ``prop`` for the elements ``ids`` (sorted), read set-based in the snapshot.
-
-    The same rows `hestore.Mesh.property_array` reads (one statement), read
-    here in the graph's own snapshot: inside a block the graph shows
-    committed data, and so must its attributes.
-    """
-    table = values.table_of(prop.dtype)
-    mine = [table.c.property == prop.id]
-    if prop.dtype == "str":
-        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh_id, *mine)
-        rows = snap.rows(stmt)
-        row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
-        row_parts = np.zeros(len(rows), dtype=np.int64)
-        components = [np.array([r[2] for r in rows], dtype=object)]
-    else:
-        width = min(prop.size or 1, values.WIDTH)
-        comps = [sa.func.coalesce(table.c[f"v{c}"], 0) for c in range(width)]
-        if prop.dtype == "float64":
-            comps = [sa.cast(c, sa.Float(53)) for c in comps] + [_null_mask(table, width)]
-        [[row_ids, row_parts, *components]] = snap.columns([(table, [table.c.id, table.c.part, *comps], mine)])
-        if prop.dtype == "float64":
-            nulls = components.pop()
-            for c in range(width):
-                components[c][(nulls >> c) & 1 == 1] = np.nan
-    at = np.searchsorted(ids, row_ids)
-    inside = at < len(ids)
-    live = np.zeros(len(row_ids), dtype=bool)
-    live[inside] = ids[at[inside]] == row_ids[inside]
-    array = values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
-    return _as_column(prop, array)
 
 
 def _as_column(prop: Property, array: np.ndarray) -> _Column:
@@ -504,10 +458,15 @@ def _length_column(vertices, u: np.ndarray, v: np.ndarray) -> _Column:
     return _Column(LENGTH, lengths, np.ones(len(lengths), dtype=bool))
 
 
-def _attributes(snap, mesh_id: int, kind: str, plan: _Plan, columns: list) -> _Attributes:
+def _property_column(snap, mesh: "Mesh", prop: Property, ids: np.ndarray) -> _Column:
+    """The values of ``prop`` for the elements ``ids``, in the graph's own snapshot (committed data)."""
+    return _as_column(prop, props.array_in(snap, mesh, prop, ids))
+
+
+def _attributes(snap, mesh: "Mesh", kind: str, plan: _Plan, columns: list) -> _Attributes:
     """The columns of ``plan``, per node row and per edge (half-edge) row of the builder's columns."""
     node_ids = columns[0][0]
-    nodes = tuple(_property_column(snap, mesh_id, prop, node_ids) for prop in plan.nodes)
+    nodes = tuple(_property_column(snap, mesh, prop, node_ids) for prop in plan.nodes)
     halfedges = columns[1]
     h_id, h_origin, h_twin = halfedges[0], halfedges[1], halfedges[2]
     edges = []
@@ -525,10 +484,10 @@ def _attributes(snap, mesh_id: int, kind: str, plan: _Plan, columns: list) -> _A
             # Each half-edge takes its edge's value.
             h_edge = halfedges[3]
             edge_ids = np.unique(h_edge)
-            column = _property_column(snap, mesh_id, item, edge_ids)
+            column = _property_column(snap, mesh, item, edge_ids)
             edges.append(column.take(np.searchsorted(edge_ids, h_edge)))
         else:
-            edges.append(_property_column(snap, mesh_id, item, h_id if kind == "halfedge" else columns[2][0]))
+            edges.append(_property_column(snap, mesh, item, h_id if kind == "halfedge" else columns[2][0]))
     return _Attributes(nodes, tuple(edges))
 
 

@@ -45,6 +45,8 @@ __all__ = [
     "set_positions",
     "check_position",
     "element_table",
+    "catalogue_in",
+    "array_in",
 ]
 
 _TABLE = {"vertex": schema.vertices, "halfedge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
@@ -246,54 +248,71 @@ def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
 # Whole columns
 
 
+def catalogue_in(snap, mesh_id: int) -> dict[tuple[str, str], Property]:
+    """Every property of a mesh by ``(kind, name)``, as a `hestore.session.Snapshot` sees them."""
+    p = schema.properties
+    cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+    found = (values.property_of(*row) for row in snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh_id)))
+    return {(prop.kind, prop.name): prop for prop in found}
+
+
+def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
+    """The values of ``prop`` for the live elements ``ids`` (sorted), read set-based in a snapshot.
+
+    What `property_array` returns for them (masked where unset without a
+    default); graph views call it in their own snapshot, so that their
+    attributes are of the same state as their connectivity.
+    """
+    table = values.table_of(prop.dtype)
+    mine = [table.c.property == prop.id]
+    if prop.dtype == "str":
+        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh.id, *mine)
+        rows = snap.rows(stmt)
+        row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
+        row_parts = np.zeros(len(rows), dtype=np.int64)
+        components = [np.array([r[2] for r in rows], dtype=object)]
+    else:
+        # Only what is needed: `part` for values of several rows, NULL flags
+        # for floats on SQLite (which stores NaN as NULL and cannot write NaN
+        # in SQL; PostgreSQL reads NULL as NaN with coalesce).
+        width = min(prop.size or 1, values.WIDTH)
+        several = values.parts(prop) > 1
+        comps, flags = [], []
+        for c in range(width):
+            column = table.c[f"v{c}"]
+            if prop.dtype != "float64":
+                comps.append(sa.func.coalesce(column, 0))
+            elif mesh.session.is_sqlite:
+                comps.append(sa.func.coalesce(column, 0.0))
+                flags.append(sa.type_coerce(column.is_(None), sa.Integer))
+            else:
+                comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
+        head = [table.c.id, table.c.part] if several else [table.c.id]
+        [[row_ids, *rest]] = snap.columns([(table, [*head, *comps, *flags], mine)])
+        row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
+        components = rest[:width]
+        for column, null in zip(components, rest[width:]):
+            column[null == 1] = np.nan
+    # Rows of elements that are not live (only in a corrupt mesh: check() says PROPERTY_REF) are dropped.
+    at = np.searchsorted(ids, row_ids)
+    inside = at < len(ids)
+    live = np.zeros(len(row_ids), dtype=bool)
+    live[inside] = ids[at[inside]] == row_ids[inside]
+    return values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
+
+
 def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
     """The property, the live ids of its kind and the array of its values, read in one state."""
     kind = _kind(kind)
     if not isinstance(name, str):
         raise _missing(mesh, kind, name)
-    p, t = schema.properties, _TABLE[kind]
+    t = _TABLE[kind]
     with mesh.session.snapshot(mesh.ref) as snap:
-        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
-        found = snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh.id, p.c.kind == kind, p.c.name == name))
-        if not found:
+        prop = catalogue_in(snap, mesh.id).get((kind, name))
+        if prop is None:
             raise _missing(mesh, kind, name)
-        prop = values.property_of(*found[0])
-        table = values.table_of(prop.dtype)
-        mine = [table.c.property == prop.id]
-        if prop.dtype == "str":
-            [[ids]] = snap.columns([(t, [t.c.id])])
-            stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh.id, *mine)
-            rows = snap.rows(stmt.order_by(table.c.id))
-            row_ids = np.array([r[0] for r in rows], dtype=np.int64)
-            row_parts = np.zeros(len(rows), dtype=np.int64)
-            components = [np.array([r[2] for r in rows], dtype=object)]
-        else:
-            # Only what is needed: `part` for values of several rows, NULL flags
-            # for floats on SQLite (which stores NaN as NULL and cannot write NaN
-            # in SQL; PostgreSQL reads NULL as NaN with coalesce).
-            width = min(prop.size or 1, values.WIDTH)
-            several = values.parts(prop) > 1
-            comps, flags = [], []
-            for c in range(width):
-                column = table.c[f"v{c}"]
-                if prop.dtype != "float64":
-                    comps.append(sa.func.coalesce(column, 0))
-                elif mesh.session.is_sqlite:
-                    comps.append(sa.func.coalesce(column, 0.0))
-                    flags.append(sa.type_coerce(column.is_(None), sa.Integer))
-                else:
-                    comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
-            head = [table.c.id, table.c.part] if several else [table.c.id]
-            [[ids], [row_ids, *rest]] = snap.columns([(t, [t.c.id]), (table, [*head, *comps, *flags], mine)])
-            row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
-            components = rest[:width]
-            for column, null in zip(components, rest[width:]):
-                column[null == 1] = np.nan
-    at = np.searchsorted(ids, row_ids)
-    at[at >= len(ids)] = 0
-    live = len(ids) > 0
-    positions = np.where(live & (ids[at] == row_ids) if live else np.zeros(len(row_ids), bool), at, -1)
-    return prop, ids, values.array_of(prop, len(ids), positions, row_parts, components)
+        [[ids]] = snap.columns([(t, [t.c.id])])
+        return prop, ids, array_in(snap, mesh, prop, ids)
 
 
 def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
