@@ -277,22 +277,25 @@ def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
         # in SQL; PostgreSQL reads NULL as NaN with coalesce).
         width = min(prop.size or 1, values.WIDTH)
         several = values.parts(prop) > 1
-        comps, flags = [], []
+        comps, nulls = [], None
         for c in range(width):
             column = table.c[f"v{c}"]
             if prop.dtype != "float64":
                 comps.append(sa.func.coalesce(column, 0))
             elif mesh.session.is_sqlite:
                 comps.append(sa.func.coalesce(column, 0.0))
-                flags.append(sa.type_coerce(column.is_(None), sa.Integer))
+                bit = sa.type_coerce(column.is_(None), sa.Integer) * (1 << c)  # SQLite: a comparison is 0 or 1
+                nulls = bit if nulls is None else nulls + bit
             else:
                 comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
         head = [table.c.id, table.c.part] if several else [table.c.id]
+        flags = [] if nulls is None else [nulls]
         [[row_ids, *rest]] = snap.columns([(table, [*head, *comps, *flags], mine)])
         row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
         components = rest[:width]
-        for column, null in zip(components, rest[width:]):
-            column[null == 1] = np.nan
+        if flags:
+            for c, column in enumerate(components):
+                column[(rest[width] >> c) & 1 == 1] = np.nan
     # Rows of elements that are not live (only in a corrupt mesh: check() says PROPERTY_REF) are dropped.
     at = np.searchsorted(ids, row_ids)
     inside = at < len(ids)
