@@ -415,6 +415,8 @@ def set_property_array(mesh: "Mesh", kind: str, name: str, ids: object, new: obj
         session.lock(mesh.ref)
         prop = _read_spec(mesh, kind, name)
         data, unset = values.check_array(prop, new, len(ids))
+        if not len(ids):
+            return  # nothing to write is no change: the revision stays
         every = _live_check(mesh, kind, ids)
         keep = slice(None) if unset is None else ~unset
         columns = values.columns_of(prop, ids[keep], data[keep])
@@ -515,6 +517,9 @@ def set_positions(mesh: "Mesh", vertices: object, positions: object) -> None:
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         raise InvalidInputError(f"position of vertex {int(ids[row])} is {xyz[row].tolist()}: {what}")
+    if not len(ids):
+        mesh.revision  # noqa: B018 - still raises for a deleted mesh; nothing to write is no change
+        return
     session = mesh.session
     with session.scope():
         session.lock(mesh.ref)

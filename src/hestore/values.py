@@ -323,7 +323,7 @@ def columns_of(prop: Property, ids: np.ndarray, data: np.ndarray) -> dict[str, n
     n = len(ids)
     if prop.dtype == "str":
         return {"id": ids, "part": np.zeros(n, dtype=np.int64), "v0": data}
-    flat = data.reshape(n, -1)
+    flat = data.reshape(n, prop.size or 1)
     if prop.dtype == "bool":
         flat = flat.astype(np.int64)
     k = flat.shape[1]
