@@ -152,3 +152,11 @@ def test_str_properties_are_not_written_to_ply(store, tmp_path):
     soup = mesh_io.read(path)
     assert list(soup.vertex_properties) == ["w"]
     assert np.array_equal(soup.vertex_properties["w"], [np.nan, 2.5, np.nan], equal_nan=True)
+
+
+def test_the_import_report_names_the_properties_it_declared(store):
+    report = store.import_file(shared_mesh("spot.obj"))
+    assert report.properties == [hestore.Property("halfedge", "uv", "float64", (2,), None)]
+    assert "properties: halfedge 'uv' (float64, shape (2,))" in report.summary()
+    plain = store.import_file(shared_mesh("cube1.off"))
+    assert plain.properties == [] and "properties" not in plain.summary()

@@ -77,6 +77,9 @@ class ImportReport:
         Every polygon left out, in input order (empty with ``on_error="raise"``).
     source : str or None
         The file imported, if any.
+    properties : list of Property
+        The properties the file's data became (PLY vertex and face
+        properties, OBJ corner ``uv`` and ``normal``).
     """
 
     mesh: "Mesh"
@@ -85,6 +88,7 @@ class ImportReport:
     polygons: int
     skipped: list = field(default_factory=list)
     source: str | None = None
+    properties: list = field(default_factory=list)
 
     def summary(self, limit: int = 20) -> str:
         """A few lines for people: counts, then up to ``limit`` skipped polygons."""
@@ -92,12 +96,19 @@ class ImportReport:
         if self.source:
             head += f" from {self.source}"
         lines = [head]
+        if self.properties:
+            lines.append("properties: " + ", ".join(map(_described, self.properties)))
         if self.skipped:
             lines.append(f"skipped {len(self.skipped)} polygon(s) the half-edge structure cannot take:")
             lines.extend(f"  {s}" for s in self.skipped[:limit])
             if len(self.skipped) > limit:
                 lines.append(f"  ... and {len(self.skipped) - limit} more")
         return "\n".join(lines)
+
+
+def _described(p: Property) -> str:
+    shape = f", shape {p.shape}" if p.shape else ""
+    return f"{p.kind} {p.name!r} ({p.dtype}{shape})"
 
 
 class MeshArrays(NamedTuple):
@@ -289,7 +300,8 @@ def _import(
         raise exc
     columns = _file_properties(data, built, soup, source) if data is not None else []
     mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns)
-    return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source)
+    declared = [spec for spec, _, _ in columns]
+    return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared)
 
 
 def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=()) -> "Mesh":
