@@ -12,18 +12,28 @@ database, and the same operations' known effects to a plain in-memory model:
 * ``vertices``: ids; ``edges``: id -> (a, b, a→b half-edge, b→a half-edge);
   ``halfedges``: id -> (origin, target, edge); ``face``: half-edge -> polygon
   or None; ``polygons``: id -> half-edges in ``next`` order.
+* properties, declared when the mesh is made (``PROPS``): ``values``: property
+  name -> {id: value} of the elements that have one set (the others read the
+  default, or are masked where there is none); ``positions``: vertex id ->
+  (x, y, z) or None. Values are written one at a time (``handle[name] = x``,
+  ``del handle[name]``) and set-based (`set_property_array` on random subsets
+  of the live ids, some entries masked to unset them); positions with
+  `set_position` and `set_positions`.
 * add_edge adds an edge; add_polygon by vertices uses a free a→b half-edge
   between consecutive corners where an edge joins them and creates an edge
   exactly where none does (at that point of the loop: after a new edge a→b,
   the pair b→a finds its free twin); remove_edge removes the polygons on both
   sides; remove_vertex removes every incident edge with its polygons; a
   refused operation changes nothing; rolling a block back restores the model
-  as it was when the block began.
+  (values and positions included) as it was when the block began. Removed
+  elements take their values with them, except that half-edges (and their
+  corner values) outlive `remove_polygon`.
 
 After every step: ``mesh.check() == []``; the stored rows of the mesh equal the
 model (vertices, edges, every half-edge's origin, twin, edge and polygon);
 counts match; every polygon's half-edge and vertex cycles equal the model's
-(up to rotation); every edge's end points are the model's; the revision is the
+(up to rotation); every edge's end points are the model's; `property_array` of
+every property and every vertex's stored position equal the model's; the revision is the
 number of committed transactions that changed the mesh (plus one while an open
 block has changed it). When an operation raises, a dump of every row of every
 table is identical to the one before it. For every add_polygon,
@@ -48,7 +58,9 @@ import itertools
 import math
 import os
 
+import numpy as np
 import pytest
+import sqlalchemy as sa
 from hypothesis import HealthCheck, Phase, event, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import (
@@ -71,6 +83,7 @@ from hestore.errors import (
     PolicyError,
     VertexNotFreeError,
 )
+from hestore.schema import VALUE_TABLES
 
 from helpers import dump
 
@@ -79,6 +92,44 @@ MAX_DEPTH = 3
 
 # Positions of the columns in `helpers.dump` rows (table column order).
 HE_ID, HE_ORIGIN, HE_NEXT, HE_PREV, HE_TWIN, HE_EDGE, HE_POLYGON = range(1, 8)
+
+
+#: The properties every machine's mesh declares: (kind, name, dtype, shape, default).
+PROPS = [
+    ("vertex", "t", "float64", (), 0.0),
+    ("halfedge", "uv", "float64", (2,), None),
+    ("edge", "w", "int64", (), 0),
+    ("polygon", "label", "str", (), ""),
+]
+PROP_KIND = {name: kind for kind, name, _d, _s, _x in PROPS}
+PROP_DEFAULT = {name: default for _k, name, _d, _s, default in PROPS}
+_FLOATS = st.floats(allow_nan=True, allow_infinity=True, width=64)
+PROP_VALUES = {
+    "t": _FLOATS,
+    "uv": st.tuples(_FLOATS, _FLOATS),
+    "w": st.integers(-(2**63), 2**63 - 1) | st.integers(-3, 3),
+    "label": st.text(st.characters(exclude_categories=("Cs",), exclude_characters="\x00"), max_size=8),
+}
+POSITIONS = st.tuples(*[st.floats(allow_nan=False, allow_infinity=False, width=64)] * 3)
+
+
+def same(a, b) -> bool:
+    """Equal values, NaN equal to NaN (tuples compared item by item)."""
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b and type(a) is type(b)
+
+
+def python_values(array) -> list:
+    """An array from `property_array` as Python values: tuples for shaped ones, None where masked."""
+    out = []
+    for x in array.tolist():
+        if isinstance(x, list):
+            x = None if all(c is None for c in x) else tuple(x)
+        out.append(x)
+    return out
 
 
 class Rollback(Exception):
@@ -103,6 +154,9 @@ class Model:
         self.used = {"vertex": set(), "edge": set(), "halfedge": set(), "polygon": set()}
         # ids of elements removed in that history: their handles are stale
         self.removed = {"vertex": set(), "edge": set(), "halfedge": set(), "polygon": set()}
+        # property values set (id -> value; unset: absent) and vertex positions
+        self.values: dict[str, dict[int, object]] = {name: {} for _k, name, _d, _s, _x in PROPS}
+        self.positions: dict[int, tuple | None] = {}
 
     # -- queries ------------------------------------------------------------
 
@@ -122,6 +176,16 @@ class Model:
     def between(self, a: int, b: int) -> list[int]:
         """Half-edges a→b."""
         return sorted(h for h, (o, t, _e) in self.halfedges.items() if o == a and t == b)
+
+    def live(self, kind: str) -> list[int]:
+        """The ids of the live elements of a kind, in id order."""
+        found = {"vertex": self.vertices, "halfedge": self.halfedges, "edge": self.edges, "polygon": self.polygons}
+        return sorted(found[kind])
+
+    def expected_values(self, name: str) -> list:
+        """What `property_array(kind, name)` must hold, as Python values (None: masked)."""
+        have = self.values[name]
+        return [have.get(i, PROP_DEFAULT[name]) for i in self.live(PROP_KIND[name])]
 
     def cycle_vertices(self, p: int) -> list[int]:
         return [self.halfedges[h][0] for h in self.polygons[p]]
@@ -171,9 +235,10 @@ class Model:
         assert i not in self.used[kind], f"{kind} id {i} handed out again (ids are never reused)"
         self.used[kind].add(i)
 
-    def add_vertex(self, v: int) -> None:
+    def add_vertex(self, v: int, position=None) -> None:
         self.fresh("vertex", v)
         self.vertices.add(v)
+        self.positions[v] = None if position is None else tuple(float(c) for c in position)
 
     def add_edge(self, e: int, a: int, b: int, h: int, t: int) -> None:
         self.fresh("edge", e)
@@ -193,7 +258,8 @@ class Model:
 
     def remove_polygon(self, p: int) -> None:
         for h in self.polygons.pop(p):
-            self.face[h] = None
+            self.face[h] = None  # half-edges stay, with their (corner) values
+        self.values["label"].pop(p, None)
         self.removed["polygon"].add(p)
 
     def remove_edge(self, e: int) -> None:
@@ -204,13 +270,17 @@ class Model:
         for x in (h, t):
             del self.halfedges[x]
             del self.face[x]
+            self.values["uv"].pop(x, None)
             self.removed["halfedge"].add(x)
+        self.values["w"].pop(e, None)
         self.removed["edge"].add(e)
 
     def remove_vertex(self, v: int) -> None:
         for e in sorted({self.halfedges[h][2] for h in self.outgoing(v)}):
             self.remove_edge(e)
         self.vertices.remove(v)
+        self.values["t"].pop(v, None)
+        del self.positions[v]
         self.removed["vertex"].add(v)
 
 
@@ -238,6 +308,8 @@ class MeshMachine(RuleBasedStateMachine):
         self.committed_revision = 0
         self.committed_dump = None
         self.last_dump = None
+        self.prop_ids: dict[str, int] = {}
+        self.verified: dict[str, tuple] = {}  # property name -> what it was last checked against
 
     # -- set-up and tear-down -------------------------------------------------
 
@@ -250,11 +322,12 @@ class MeshMachine(RuleBasedStateMachine):
         self.name = f"sm{next(self.counter)}"
         self.mesh = self.store.create_mesh(self.name, allow_loops=self.allow_loops,
                                            allow_multi_edges=self.allow_multi)
-        if start:
-            with self.store.transaction():  # one transaction: revision 1
-                for _ in range(start):
-                    self.model.add_vertex(self.mesh.add_vertex().id)
-            self.committed_revision = 1
+        with self.store.transaction():  # one transaction: revision 1
+            for kind, name, dtype, shape, default in PROPS:
+                self.prop_ids[name] = self.mesh.add_property(kind, name, dtype, shape=shape, default=default).id
+            for _ in range(start):
+                self.model.add_vertex(self.mesh.add_vertex().id)
+        self.committed_revision = 1
         self.last_dump = self.committed_dump = dump(self.store)
 
     def teardown(self):
@@ -358,7 +431,7 @@ class MeshMachine(RuleBasedStateMachine):
     @rule(position=st.none() | st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False)] * 3))
     def add_vertex(self, position):
         v = self.mesh.add_vertex(position)
-        self.model.add_vertex(v.id)
+        self.model.add_vertex(v.id, position)
         self.changed()
         assert v.is_isolated
         if position is not None:
@@ -621,6 +694,91 @@ class MeshMachine(RuleBasedStateMachine):
         self.model.remove_vertex(v)
         self.changed()
 
+    # -- properties and positions -------------------------------------------------
+
+    def _handle(self, kind: str, i: int):
+        return {"vertex": self.V, "halfedge": self.H, "edge": self.E, "polygon": self.P}[kind](i)
+
+    @rule(data=st.data(), name=st.sampled_from([name for _k, name, _d, _s, _x in PROPS]))
+    def set_value(self, data, name):
+        self._set_value(data, name)
+
+    @rule(data=st.data(), name=st.sampled_from([name for _k, name, _d, _s, _x in PROPS]))
+    def set_value_again(self, data, name):  # (a second rule doubles how often values are written)
+        self._set_value(data, name)
+
+    def _set_value(self, data, name):
+        kind = PROP_KIND[name]
+        live = self.model.live(kind)
+        if not live:
+            return
+        i = data.draw(st.sampled_from(live), label="id")
+        how = ["set", "set", "set", "None", "del"][data.draw(st.integers(0, 4), label="how")]
+        h = self._handle(kind, i)
+        if how == "set":
+            value = data.draw(PROP_VALUES[name], label="value")
+            h[name] = value
+            self.model.values[name][i] = value
+        else:
+            if how == "del":
+                del h[name]
+            else:
+                h[name] = None
+            self.model.values[name].pop(i, None)
+        self.changed()
+        event(f"property value: {how}")
+
+    @rule(data=st.data(), name=st.sampled_from([name for _k, name, _d, _s, _x in PROPS]),
+          handles=st.booleans())
+    def set_values_bulk(self, data, name, handles):
+        kind = PROP_KIND[name]
+        live = self.model.live(kind)
+        if not live:
+            return
+        ids = data.draw(st.lists(st.sampled_from(live), min_size=1, max_size=len(live), unique=True), label="ids")
+        vals = [data.draw(PROP_VALUES[name], label="value") for _ in ids]
+        unset = data.draw(st.lists(st.booleans(), min_size=len(ids), max_size=len(ids)), label="unset")
+        unset[data.draw(st.integers(0, len(ids) - 1), label="kept")] = False  # (at least one value is written)
+        if name == "label":
+            array = np.empty(len(ids), dtype=object)
+            array[:] = vals
+            if data.draw(st.booleans(), label="None for unset"):
+                array[np.array(unset)] = None
+            else:
+                array = np.ma.MaskedArray(array, mask=unset)
+        else:
+            array = np.array(vals, dtype=np.float64 if name != "w" else np.int64)
+            mask = np.array(unset).reshape((-1,) + (1,) * (array.ndim - 1))
+            array = np.ma.MaskedArray(array, mask=np.broadcast_to(mask, array.shape).copy())
+        targets = [self._handle(kind, i) for i in ids] if handles else np.array(ids, dtype=np.int64)
+        self.mesh.set_property_array(kind, name, targets, array)
+        for i, value, u in zip(ids, vals, unset):
+            if u:
+                self.model.values[name].pop(i, None)
+            else:
+                self.model.values[name][i] = value
+        self.changed()
+        event(f"set_property_array of {name}")
+
+    @precondition(lambda self: self.model.vertices)
+    @rule(data=st.data(), position=st.none() | POSITIONS)
+    def set_position(self, data, position):
+        v = data.draw(st.sampled_from(sorted(self.model.vertices)), label="vertex")
+        self.mesh.set_position(self.V(v), position)
+        self.model.positions[v] = None if position is None else tuple(float(c) for c in position)
+        self.changed()
+
+    @precondition(lambda self: self.model.vertices)
+    @rule(data=st.data(), handles=st.booleans())
+    def set_positions(self, data, handles):
+        vs = sorted(self.model.vertices)
+        ids = data.draw(st.lists(st.sampled_from(vs), min_size=1, max_size=len(vs), unique=True), label="ids")
+        xyz = [data.draw(POSITIONS, label="position") for _ in ids]
+        self.mesh.set_positions([self.V(v) for v in ids] if handles else ids, np.array(xyz, dtype=np.float64))
+        for v, p in zip(ids, xyz):
+            self.model.positions[v] = p
+        self.changed()
+
     # -- operations that must fail ----------------------------------------------
 
     @rule(data=st.data(), what=st.sampled_from(["stale", "stale", "malformed"]))
@@ -642,22 +800,28 @@ class MeshMachine(RuleBasedStateMachine):
             v = self.V(i)
             calls = [lambda: self.mesh.remove_vertex(v), lambda: v.degree, lambda: v.neighbors(),
                      lambda: self.mesh.add_polygon([v]), lambda: self.mesh.can_add_polygon([v]),
-                     lambda: self.mesh.vertex(i)]
+                     lambda: self.mesh.vertex(i), lambda: v["t"], lambda: v.__setitem__("t", 1.0),
+                     lambda: self.mesh.set_position(v, (0, 0, 0)),
+                     lambda: self.mesh.set_positions([v], [[0, 0, 0]]),
+                     lambda: self.mesh.set_property_array("vertex", "t", [i], [1.0])]
             if other is not None:
                 calls += [lambda: self.mesh.add_edge(other, v), lambda: self.mesh.add_edge(v, other),
                           lambda: self.mesh.add_polygon([other, v])]
         elif kind == "edge":
             e = self.E(i)
             calls = [lambda: self.mesh.remove_edge(e), lambda: e.vertices(), lambda: e.halfedges(),
-                     lambda: self.mesh.edge(i)]
+                     lambda: self.mesh.edge(i), lambda: e.__setitem__("w", 1), lambda: e.__delitem__("w"),
+                     lambda: self.mesh.set_property_array("edge", "w", [e], [1])]
         elif kind == "halfedge":
             h = self.H(i)
             calls = [lambda: h.next, lambda: h.origin, lambda: self.mesh.add_polygon([h]),
-                     lambda: self.mesh.can_add_polygon([h]), lambda: self.mesh.halfedge(i)]
+                     lambda: self.mesh.can_add_polygon([h]), lambda: self.mesh.halfedge(i),
+                     lambda: h["uv"], lambda: h.__setitem__("uv", (1.0, 2.0))]
         else:
             p = self.P(i)
             calls = [lambda: self.mesh.remove_polygon(p), lambda: p.vertices(), lambda: p.degree,
-                     lambda: self.mesh.polygon(i)]
+                     lambda: self.mesh.polygon(i), lambda: p.__setitem__("label", "x"),
+                     lambda: self.mesh.set_property_array("polygon", "label", [i], ["x"])]
         call = data.draw(st.sampled_from(calls), label="call")
         self.refused(call, ElementNotFoundError)
 
@@ -669,6 +833,13 @@ class MeshMachine(RuleBasedStateMachine):
             lambda: self.mesh.add_polygon([]),
             lambda: self.mesh.add_polygon(v),
             lambda: self.mesh.add_edge(v, v.id),
+            lambda: v.__setitem__("t", "1.0"),
+            lambda: v.__setitem__("t", (1.0,)),
+            lambda: self.mesh.set_position(v, (math.nan, 0.0, 0.0)),
+            lambda: self.mesh.set_positions([v, v], np.zeros((2, 3))),
+            lambda: self.mesh.set_positions([v], np.zeros((1, 2))),
+            lambda: self.mesh.set_property_array("vertex", "t", [v.id, v.id], [1.0, 2.0]),
+            lambda: self.mesh.set_property_array("vertex", "t", [v.id], ["x"]),
         ]), label="call")
         self.refused(call, InvalidInputError)
 
@@ -691,6 +862,32 @@ class MeshMachine(RuleBasedStateMachine):
         assert (self.mesh.allow_loops, self.mesh.allow_multi_edges) == (self.allow_loops, self.allow_multi)
 
     # -- invariants ---------------------------------------------------------------
+
+    def _check_properties(self):
+        """`property_array` of every property equals the model.
+
+        `property_array` is a function of the property's stored value rows and
+        of the live ids of its kind; where both and the model's expectation are
+        what they were when it was last read and found right, it is not read
+        again (most steps leave most properties alone).
+        """
+        m, mesh = self.model, self.mesh
+        with self.store.session.reading() as conn:
+            raw = {}
+            for t in VALUE_TABLES:
+                for r in conn.execute(sa.select(*t.c).where(t.c.mesh_id == mesh.id).order_by(*t.c)):
+                    raw.setdefault(r[1], []).append(tuple(r))
+        for kind, name, _dtype, _shape, _default in PROPS:
+            want = m.expected_values(name)
+            key = (repr(raw.get(self.prop_ids[name], [])), tuple(m.live(kind)), repr(want))
+            if self.verified.get(name) == key:
+                continue
+            ids, array = mesh.property_array(kind, name)
+            assert ids.tolist() == m.live(kind)
+            got = python_values(array)
+            assert len(got) == len(want) and all(same(g, w) for g, w in zip(got, want)), (
+                f"property {name!r}: {got} != {want}")
+            self.verified[name] = key
 
     @invariant()
     def matches_model(self):
@@ -724,6 +921,9 @@ class MeshMachine(RuleBasedStateMachine):
             E = self.E(e)
             assert tuple(v.id for v in E.vertices()) == (a, b)
             assert E.halfedge.id == h
+        self._check_properties()
+        stored = {r[1]: (None if r[3] is None else tuple(r[3:6])) for r in d["vertices"] if r[0] == mid}
+        assert stored == m.positions
         assert mesh.revision == self.expected_revision
         assert self.store.in_transaction == bool(self.stack)
 

@@ -74,6 +74,7 @@ __all__ = [
     "NonManifoldError",
     "VertexNotFreeError",
     "PolicyError",
+    "PropertyNotFoundError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
