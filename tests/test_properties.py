@@ -876,9 +876,6 @@ def test_revision_counts_committed_transactions(store, mesh):
     assert mesh.revision == rev + 6
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "set_property_array with no ids on a float64/int64/bool property raises a bare numpy ValueError "
-    "(values.columns_of reshapes a size-0 array to (0, -1)) instead of writing nothing"))
 def test_empty_set_property_array_writes_nothing(store, mesh):
     vs = build(mesh)
     mesh.add_property("vertex", "t", "float64", default=0.0)
@@ -888,9 +885,6 @@ def test_empty_set_property_array_writes_nothing(store, mesh):
     assert vs[0]["t"] == 0.0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "set_property_array whose every entry is masked (unset only) on a float64/int64/bool property raises a "
-    "bare numpy ValueError (values.columns_of gets zero rows to write and reshapes them to (0, -1))"))
 def test_set_property_array_with_every_entry_masked_unsets(store, mesh):
     vs = build(mesh)
     mesh.add_property("vertex", "t", "float64", default=0.0)
@@ -909,10 +903,6 @@ def test_masked_str_and_none_unset(store, mesh):
     assert value_keys(store, mesh) == set()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "an empty set-based write (set_positions or set_property_array of a str property with no ids) changes "
-    "nothing but still counts as a change: mesh.revision grows by one (SPEC §4: only transactions that "
-    "changed the mesh count)"))
 @pytest.mark.parametrize("what", ["positions", "str values"])
 def test_empty_set_based_writes_do_not_bump_the_revision(store, mesh, what):
     build(mesh)
@@ -1283,7 +1273,6 @@ def test_check_stays_clean_with_values(store, mesh):
     mesh.validate()
 
 
-@pytest.mark.xfail(reason="PROPERTY_REF lands with validation", strict=False)
 @pytest.mark.parametrize("dtype", ["float64", "int64", "str"])
 def test_check_reports_values_of_missing_elements(store, mesh, db_url, dtype):
     vs = build(mesh)

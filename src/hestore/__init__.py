@@ -74,7 +74,6 @@ __all__ = [
     "NonManifoldError",
     "VertexNotFreeError",
     "PolicyError",
-    "PropertyNotFoundError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
