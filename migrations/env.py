@@ -21,6 +21,7 @@ import os
 import sqlalchemy as sa
 from alembic import context
 
+from hestore.migrate import compare_type
 from hestore.schema import metadata as target_metadata
 
 config = context.config
@@ -38,6 +39,7 @@ def run_migrations_offline() -> None:
     context.configure(
         url=url,
         target_metadata=target_metadata,
+        compare_type=compare_type,
         literal_binds=True,
         dialect_opts={"paramstyle": "named"},
         render_as_batch=sa.engine.make_url(url).get_backend_name() == "sqlite",
@@ -50,6 +52,7 @@ def _run_on(connection: sa.Connection) -> None:
     context.configure(
         connection=connection,
         target_metadata=target_metadata,
+        compare_type=compare_type,
         render_as_batch=connection.dialect.name == "sqlite",
     )
     with context.begin_transaction():

@@ -46,3 +46,10 @@ def test_ruff_finds_nothing():
         cwd=ROOT,
     )
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_public_names_are_exported_once():
+    import hestore
+
+    assert len(hestore.__all__) == len(set(hestore.__all__))
+    assert all(hasattr(hestore, name) for name in hestore.__all__)

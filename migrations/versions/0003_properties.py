@@ -7,6 +7,11 @@ Create Date: 2026-11-23
 Values are plain SQL rows keyed ``(mesh_id, property, id, part)``: up to four
 components of one element's value per row (see ``hestore.values``).
 Existing meshes get ``next_property = 0`` and no properties.
+
+On SQLite, float columns (the new ``property_reals`` values, and the
+vertices' x, y, z, whose table is rebuilt with its rows) are declared without
+a type: a ``REAL`` column stores ``-0.0`` as the integer 0, a column without
+type affinity keeps every float bit for bit.
 """
 # Written out explicitly, never imported from hestore.schema: this revision
 # must keep describing the schema as it was when it was written.
@@ -23,11 +28,29 @@ down_revision: str | None = "0002"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
-_VALUE_TABLES = (("property_reals", sa.Float(53), 4), ("property_integers", sa.BigInteger(), 4),
+class _NoAffinity(sa.types.UserDefinedType):
+    cache_ok = True
+
+    def get_col_spec(self, **kw) -> str:
+        return ""
+
+
+_FLOAT = sa.Float(53).with_variant(_NoAffinity(), "sqlite")
+_VALUE_TABLES = (("property_reals", _FLOAT, 4), ("property_integers", sa.BigInteger(), 4),
                  ("property_texts", sa.Text(), 1))
 
 
+def _vertex_coordinates(type_) -> None:
+    """Rebuild SQLite's vertices table with coordinates of ``type_`` (PostgreSQL's stay double precision)."""
+    if op.get_bind().dialect.name != "sqlite":
+        return
+    with op.batch_alter_table("vertices", recreate="always", table_kwargs={"sqlite_with_rowid": False}) as batch:
+        for name in "xyz":
+            batch.alter_column(name, type_=type_, existing_nullable=True)
+
+
 def upgrade() -> None:
+    _vertex_coordinates(_FLOAT)
     with op.batch_alter_table("meshes") as batch:
         batch.add_column(sa.Column("next_property", sa.BigInteger(), nullable=False, server_default="0"))
     op.create_table(
@@ -60,3 +83,4 @@ def downgrade() -> None:
     op.drop_table("properties")
     with op.batch_alter_table("meshes") as batch:
         batch.drop_column("next_property")
+    _vertex_coordinates(sa.Float(53))

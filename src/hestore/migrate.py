@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     import alembic.script
 
 __all__ = [
+    "compare_type",
     "script_location",
     "alembic_config",
     "upgrade",
@@ -122,6 +123,18 @@ def alembic_config(
     if connection is not None:
         config.attributes["connection"] = connection
     return config
+
+
+def compare_type(context, inspected_column, metadata_column, inspected_type, metadata_type) -> bool | None:
+    """Alembic's ``compare_type`` hook: hestore's untyped SQLite float columns match untyped columns.
+
+    `hestore.schema` declares float columns without a type on SQLite (so
+    that no affinity rewrites ``-0.0``); Alembic's own comparison cannot
+    read an empty type. Anything else is left to Alembic (None).
+    """
+    if isinstance(metadata_type.dialect_impl(context.dialect), schema.NoAffinity):
+        return not isinstance(inspected_type, sa.types.NullType)
+    return None
 
 
 def upgrade(connection: sa.Connection, revision: str = "head") -> None:

@@ -40,6 +40,24 @@ metadata = sa.MetaData()
 
 _ID = sa.BigInteger()
 
+
+class NoAffinity(sa.types.UserDefinedType):
+    """A SQLite column declared without a type, so without a type affinity.
+
+    A ``REAL`` column stores a float with no fractional part as an integer,
+    and ``-0.0`` comes back as ``0.0``; a column without affinity keeps the
+    REAL value it is given, bit for bit (``typeof()`` still says ``real``).
+    """
+
+    cache_ok = True
+
+    def get_col_spec(self, **kw) -> str:
+        return ""
+
+
+#: A float64 column: ``double precision`` on PostgreSQL, exact REALs on SQLite.
+_FLOAT = sa.Float(53).with_variant(NoAffinity(), "sqlite")
+
 meshes = sa.Table(
     "meshes",
     metadata,
@@ -64,9 +82,9 @@ vertices = sa.Table(
     sa.Column("mesh_id", sa.Integer, primary_key=True),
     sa.Column("id", _ID, primary_key=True),
     sa.Column("halfedge", _ID, nullable=True),
-    sa.Column("x", sa.Float(53), nullable=True),
-    sa.Column("y", sa.Float(53), nullable=True),
-    sa.Column("z", sa.Float(53), nullable=True),
+    sa.Column("x", _FLOAT, nullable=True),
+    sa.Column("y", _FLOAT, nullable=True),
+    sa.Column("z", _FLOAT, nullable=True),
     sqlite_with_rowid=False,
 )
 
@@ -139,7 +157,7 @@ def _value_table(name: str, type_: sa.types.TypeEngine, width: int) -> sa.Table:
     )
 
 
-property_reals = _value_table("property_reals", sa.Float(53), 4)
+property_reals = _value_table("property_reals", _FLOAT, 4)
 property_integers = _value_table("property_integers", sa.BigInteger(), 4)
 property_texts = _value_table("property_texts", sa.Text(), 1)
 
