@@ -213,6 +213,7 @@ def value(mesh: "Mesh", kind: str, i: int, name: str) -> Any:
         raise _missing(mesh, kind, name)
     found = session.fetch(mesh.ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
     if not found:
+        mesh.revision  # noqa: B018 - a deleted mesh raises MeshNotFoundError, not this
         raise _missing(mesh, kind, name)
     *row, exists = found[0]
     if not exists:

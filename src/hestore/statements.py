@@ -116,12 +116,6 @@ class Prepared:
             seq = zip(*(columns[n] if n in columns else itertools.repeat(values[n]) for n in self.order))
         cursor.executemany(self.sql, seq)
 
-    def run_many(self, cursor: Any, seq: Iterable[dict[str, Any]]) -> None:
-        """Execute once per parameter set, in one driver call."""
-        seq = [self.params(values) for values in seq]
-        if seq:
-            cursor.executemany(self.sql, seq)
-
 
 def in_list_bucket(n: int) -> int:
     """The compiled ``IN`` list length that holds ``n`` values.
