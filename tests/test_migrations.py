@@ -36,7 +36,8 @@ def engine(db_url):
 
 
 def _differences(conn: sa.Connection) -> list:
-    return compare_metadata(MigrationContext.configure(conn, opts={"compare_type": migrate.compare_type}), schema.metadata)
+    context = MigrationContext.configure(conn, opts={"compare_type": migrate.compare_type})
+    return compare_metadata(context, schema.metadata)
 
 
 def _index_names(conn: sa.Connection) -> set[str]:
