@@ -335,6 +335,7 @@ def test_codes_are_ordered_and_described():
         "V_BOUNDARY",
         "REF",
         "POLICY",
+        "PROPERTY_REF",
     )
     assert list(CODE_DESCRIPTIONS) == list(CODES)
     assert all(isinstance(d, str) and d and "\n" not in d for d in CODE_DESCRIPTIONS.values())

@@ -178,7 +178,9 @@ class Violation:
         The invariant's code, one of `hestore.validation.CODES`.
     kind : str
         The kind of the offending element: ``"halfedge"``, ``"vertex"``,
-        ``"edge"`` or ``"polygon"``.
+        ``"edge"`` or ``"polygon"`` — or ``"property"`` for a value row of a
+        property that is not declared (``PROPERTY_REF``; ``ids`` is then the
+        property id and the element id).
     ids : tuple of int
         The ids involved, the offending element's first; the others are the
         elements (of any kind, see `message`) the reason refers to.
