@@ -264,9 +264,18 @@ def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
     default); graph views call it in their own snapshot, so that their
     attributes are of the same state as their connectivity.
     """
+    return _values_in(snap, mesh, prop, ids)[1]
+
+
+def _values_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray | None) -> tuple[np.ndarray, Any]:
+    """``(ids, values)`` of `array_in`; without ``ids``, every live element's, read in the same statement."""
+    t = _TABLE[prop.kind]
+    own_ids = [] if ids is not None else [(t, [t.c.id])]
     table = values.table_of(prop.dtype)
     mine = [table.c.property == prop.id]
     if prop.dtype == "str":
+        if ids is None:
+            [[ids]] = snap.columns(own_ids)
         stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh.id, *mine)
         rows = snap.rows(stmt)
         row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
@@ -291,7 +300,9 @@ def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
                 comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
         head = [table.c.id, table.c.part] if several else [table.c.id]
         flags = [] if nulls is None else [nulls]
-        [[row_ids, *rest]] = snap.columns([(table, [*head, *comps, *flags], mine)])
+        *read, [row_ids, *rest] = snap.columns([*own_ids, (table, [*head, *comps, *flags], mine)])
+        if read:
+            [[ids]] = read
         row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
         components = rest[:width]
         if flags:
@@ -302,7 +313,7 @@ def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
     inside = at < len(ids)
     live = np.zeros(len(row_ids), dtype=bool)
     live[inside] = ids[at[inside]] == row_ids[inside]
-    return values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
+    return ids, values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
 
 
 def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
@@ -310,13 +321,11 @@ def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any
     kind = _kind(kind)
     if not isinstance(name, str):
         raise _missing(mesh, kind, name)
-    t = _TABLE[kind]
     with mesh.session.snapshot(mesh.ref) as snap:
         prop = catalogue_in(snap, mesh.id).get((kind, name))
         if prop is None:
             raise _missing(mesh, kind, name)
-        [[ids]] = snap.columns([(t, [t.c.id])])
-        return prop, ids, array_in(snap, mesh, prop, ids)
+        return (prop, *_values_in(snap, mesh, prop, None))
 
 
 def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
