@@ -35,7 +35,7 @@ from hestore.unitofwork import (
     ChangeSet,
     PropertyChanges,
 )
-from hestore.values import Property, dump_default, property_of, table_of
+from hestore.values import Property, catalogue_columns, dump_default, property_of, table_of
 
 __all__ = ["Persistence"]
 
@@ -188,7 +188,7 @@ class Persistence:
         p = schema.properties
 
         def build():
-            cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+            cols = catalogue_columns()
             return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m")).order_by(p.c.id)
 
         return [

@@ -146,7 +146,7 @@ def remove_property(mesh: "Mesh", kind: str, name: str) -> None:
 def _build_catalogue(kind: str):
     def build():
         p = schema.properties
-        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+        cols = values.catalogue_columns()
         return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind).order_by(p.c.id)
 
     return build
@@ -179,7 +179,7 @@ def _build_lookup(kind: str):
     def build():
         p, t = schema.properties, _TABLE[kind]
         exists = sa.exists().where(t.c.mesh_id == sa.bindparam("m"), t.c.id == sa.bindparam("i"))
-        cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value, exists)
+        cols = (*values.catalogue_columns(), exists)
         return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind, p.c.name == sa.bindparam("n"))
 
     return build
@@ -252,7 +252,7 @@ def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
 def catalogue_in(snap, mesh_id: int) -> dict[tuple[str, str], Property]:
     """Every property of a mesh by ``(kind, name)``, as a `hestore.session.Snapshot` sees them."""
     p = schema.properties
-    cols = (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+    cols = values.catalogue_columns()
     found = (values.property_of(*row) for row in snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh_id)))
     return {(prop.kind, prop.name): prop for prop in found}
 

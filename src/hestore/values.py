@@ -60,6 +60,7 @@ __all__ = [
     "dump_default",
     "load_default",
     "property_of",
+    "catalogue_columns",
 ]
 
 #: Element kinds a property can be declared on.
@@ -396,7 +397,13 @@ def load_default(prop_shape: tuple, text: str | None) -> Any:
     return tuple(value) if prop_shape else value
 
 
+def catalogue_columns() -> tuple:
+    """The ``properties`` columns `property_of` takes, in its order."""
+    p = schema.properties
+    return (p.c.id, p.c.kind, p.c.name, p.c.dtype, p.c.size, p.c.default_value)
+
+
 def property_of(id: int, kind: str, name: str, dtype: str, size: int | None, default_text: str | None) -> Property:
-    """A `Property` from its catalogue row."""
+    """A `Property` from its catalogue row (`catalogue_columns`)."""
     shape = () if size is None else (int(size),)
     return Property(kind, name, dtype, shape, load_default(shape, default_text), int(id))
