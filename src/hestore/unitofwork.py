@@ -602,9 +602,8 @@ class UnitOfWork:
     def set_position(self, v: int, xyz: tuple | None) -> None:
         """Move vertex ``v`` (None: no position)."""
         self.vhe(v)
-        if self._v0.get(v) is NEW:
-            self._set(self._pos, v, xyz)
-        # Written after any bulk write of this flush, so the last call wins.
+        # An update written after the flush's inserts and bulk writes, so the
+        # last call wins; a vertex new in this flush is inserted, then moved.
         self._set(self._pos_set, v, xyz)
 
     def stage(self, bulk: BulkValues) -> None:
