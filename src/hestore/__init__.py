@@ -20,6 +20,7 @@ vocabulary, and analysed with networkx.
 
 from hestore.errors import (
     ElementNotFoundError,
+    EulerError,
     HalfEdgeNotFreeError,
     HestoreError,
     InvalidInputError,
@@ -74,6 +75,7 @@ __all__ = [
     "NonManifoldError",
     "VertexNotFreeError",
     "PolicyError",
+    "EulerError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",

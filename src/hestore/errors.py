@@ -49,6 +49,7 @@ __all__ = [
     "NonManifoldError",
     "VertexNotFreeError",
     "PolicyError",
+    "EulerError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
@@ -166,6 +167,40 @@ class VertexNotFreeError(TopologyError):
 
 class PolicyError(TopologyError):
     """The mesh's policy forbids self-loops or parallel edges."""
+
+
+class EulerError(TopologyError):
+    """An Euler operator's precondition does not hold (SPEC §3.1); nothing was changed.
+
+    Parameters
+    ----------
+    message : str
+        What was refused and why, naming the elements.
+    refs : sequence of (str, int), optional
+        The elements, as for `TopologyError`.
+    reason : str
+        A stable code for the precondition that failed, for programs to
+        branch on: ``"boundary"`` (a side of the edge is free),
+        ``"same-polygon"`` (both sides are one polygon), ``"not-triangle"``,
+        ``"duplicate-edge"`` (the new edge would join vertices already
+        joined), ``"degenerate"`` (the result would be a 1-gon, an empty
+        polygon, a self-loop or a dangling edge), ``"link-condition"`` (the
+        collapse would merge edges or polygons other than those beside the
+        edge, or pinch the surface), ``"loop"`` (the edge is a self-loop),
+        ``"not-corner"``, ``"adjacent-corners"``, ``"same-corner"``,
+        ``"not-adjacent"`` (the edges share no vertex), ``"degree"`` (other
+        edges meet at the shared vertex) or ``"same-edge"``.
+
+    Examples
+    --------
+    >>> exc = EulerError("edge 3 is on the boundary", [("edge", 3)], reason="boundary")
+    >>> exc.reason, exc.refs
+    ('boundary', (('edge', 3),))
+    """
+
+    def __init__(self, message: str, refs: Any = (), *, reason: str = "") -> None:
+        super().__init__(message, refs)
+        self.reason = reason
 
 
 @dataclass(frozen=True)

@@ -46,15 +46,24 @@ __all__ = [
     "make_adjacent",
     "find_free_incident",
     "is_free_vertex",
+    "target",
+    "describe",
+    "edges_between",
+    "check_policy",
+    "polygon_loop",
+    "adjust_outgoing",
+    "unlink",
 ]
 
 
-def _target(uow: UnitOfWork, h: int) -> int:
+def target(uow: UnitOfWork, h: int) -> int:
+    """The vertex half-edge ``h`` arrives at."""
     return uow.he(uow.he(h)[TWIN])[ORIGIN]
 
 
-def _describe(uow: UnitOfWork, h: int) -> str:
-    return f"half-edge {h} ({uow.he(h)[ORIGIN]}→{_target(uow, h)})"
+def describe(uow: UnitOfWork, h: int) -> str:
+    """``half-edge 7 (3→4)``: a half-edge for a message."""
+    return f"half-edge {h} ({uow.he(h)[ORIGIN]}→{target(uow, h)})"
 
 
 def is_free_vertex(uow: UnitOfWork, v: int) -> bool:
@@ -126,8 +135,8 @@ def _first_free_outgoing(uow: UnitOfWork, v: int) -> int | None:
     raise uow.corrupt("V_ROTATION", "vertex", v, f"the rotation around vertex {v} does not close")
 
 
-def _adjust_outgoing(uow: UnitOfWork, v: int) -> None:
-    # V_BOUNDARY: if v has a free outgoing half-edge, v.halfedge is one.
+def adjust_outgoing(uow: UnitOfWork, v: int) -> None:
+    """Restore V_BOUNDARY at ``v``: if it has a free outgoing half-edge, ``v.halfedge`` is one."""
     h = uow.vhe(v)
     if h is not None and uow.he(h)[POLYGON] is not None:
         free = _first_free_outgoing(uow, v)
@@ -140,24 +149,33 @@ def add_vertex(uow: UnitOfWork, position: tuple | None = None) -> int:
     return uow.new_vertex(position)
 
 
-def _edges_between(uow: UnitOfWork, a: int, b: int) -> list[int]:
+def edges_between(uow: UnitOfWork, a: int, b: int) -> list[int]:
     """Half-edges a→b, lowest id first."""
-    return sorted(h for h in uow.outgoing(a) if _target(uow, h) == b)
+    return sorted(h for h in uow.outgoing(a) if target(uow, h) == b)
+
+
+def check_policy(uow: UnitOfWork, a: int, b: int, ignore: frozenset = frozenset()) -> None:
+    """Raise `PolicyError` if a new edge ``a``–``b`` would be a loop or a parallel edge the mesh forbids.
+
+    Edges in ``ignore`` do not count (those an operator is about to remove).
+    """
+    if a == b and not uow.allow_loops:
+        raise PolicyError(f"vertex {a}: this mesh does not allow self-loop edges", (("vertex", a),))
+    if uow.allow_multi_edges:
+        return
+    existing = [e for e in (uow.he(h)[EDGE] for h in edges_between(uow, a, b)) if e not in ignore]
+    if existing:
+        raise PolicyError(
+            f"vertices {a} and {b} are already joined by edge {existing[0]}; this mesh does not allow parallel edges",
+            (("vertex", a), ("vertex", b), ("edge", existing[0])),
+        )
 
 
 def _check_edge(uow: UnitOfWork, a: int, b: int) -> None:
     uow.load(stars=(a, b))
     uow.vhe(a)
     uow.vhe(b)
-    if a == b and not uow.allow_loops:
-        raise PolicyError(f"vertex {a}: this mesh does not allow self-loop edges", (("vertex", a),))
-    existing = [] if uow.allow_multi_edges else _edges_between(uow, a, b)
-    if existing:
-        e = uow.he(existing[0])[EDGE]
-        raise PolicyError(
-            f"vertices {a} and {b} are already joined by edge {e}; this mesh does not allow parallel edges",
-            (("vertex", a), ("vertex", b), ("edge", e)),
-        )
+    check_policy(uow, a, b)
     for v in dict.fromkeys((a, b)):
         if not is_free_vertex(uow, v):
             raise VertexNotFreeError(
@@ -206,16 +224,16 @@ def _check_loop(uow: UnitOfWork, loop: Sequence[int]) -> None:
     n = len(loop)
     for i, h in enumerate(loop):
         nxt = loop[(i + 1) % n]
-        if _target(uow, h) != uow.he(nxt)[ORIGIN]:
+        if target(uow, h) != uow.he(nxt)[ORIGIN]:
             raise NotAChainError(
-                f"{_describe(uow, h)} is followed by {_describe(uow, nxt)}: they do not meet",
+                f"{describe(uow, h)} is followed by {describe(uow, nxt)}: they do not meet",
                 (("halfedge", h), ("halfedge", nxt)),
             )
     for h in loop:
         p = uow.he(h)[POLYGON]
         if p is not None:
             raise HalfEdgeNotFreeError(
-                f"{_describe(uow, h)} already has polygon {p}; edge {uow.he(h)[EDGE]} cannot take "
+                f"{describe(uow, h)} already has polygon {p}; edge {uow.he(h)[EDGE]} cannot take "
                 f"another polygon on that side (a complex edge)",
                 (("halfedge", h), ("polygon", p)),
             )
@@ -247,7 +265,7 @@ def add_polygon(uow: UnitOfWork, loop: Sequence[int]) -> int:
     for h in loop:
         uow.set_polygon(h, p)
     for v in dict.fromkeys(uow.he(h)[ORIGIN] for h in loop):
-        _adjust_outgoing(uow, v)
+        adjust_outgoing(uow, v)
     return p
 
 
@@ -329,7 +347,7 @@ def _complex_vertex(uow: UnitOfWork, h: int, nxt: int) -> NonManifoldError:
     v = uow.he(nxt)[ORIGIN]
     return NonManifoldError(
         f"vertex {v} has no free gap left to reorder its neighbourhood into, so "
-        f"{_describe(uow, h)} cannot be followed by {_describe(uow, nxt)} in one polygon "
+        f"{describe(uow, h)} cannot be followed by {describe(uow, nxt)} in one polygon "
         f"(a complex vertex: the polygon would join fans that cannot be separated)",
         (("vertex", v), ("halfedge", h), ("halfedge", nxt)),
     )
@@ -341,7 +359,7 @@ def _choose_halfedge(uow: UnitOfWork, a: int, b: int, used: set[int]) -> int | N
     Prefers one whose twin is not in the loop either (so two parallel edges
     give a 2-gon, not a polygon on both sides of one edge), then the lowest id.
     """
-    candidates = _edges_between(uow, a, b)
+    candidates = edges_between(uow, a, b)
     if not candidates:
         return None
     free = [h for h in candidates if uow.he(h)[POLYGON] is None and h not in used]
@@ -386,7 +404,8 @@ def add_polygon_from_vertices(uow: UnitOfWork, vertices: Sequence[int]) -> int:
     return add_polygon(uow, loop)
 
 
-def _polygon_loop(uow: UnitOfWork, p: int) -> list[int]:
+def polygon_loop(uow: UnitOfWork, p: int) -> list[int]:
+    """The half-edges of polygon ``p`` in ``next`` order, from ``p.halfedge``."""
     start = uow.polygon_he(p)
     loop = [start]
     h = uow.he(start)[NEXT]
@@ -401,7 +420,7 @@ def _polygon_loop(uow: UnitOfWork, p: int) -> list[int]:
 def remove_polygon(uow: UnitOfWork, p: int) -> None:
     """Remove polygon ``p``; its half-edges become free, its edges stay."""
     uow.load(polygons=(p,))
-    loop = _polygon_loop(uow, p)
+    loop = polygon_loop(uow, p)
     uow.load(stars=[uow.he(h)[ORIGIN] for h in loop])
     for h in loop:
         uow.set_polygon(h, None)
@@ -415,13 +434,15 @@ def remove_polygon(uow: UnitOfWork, p: int) -> None:
 def _load_footprint(uow: UnitOfWork, vertices: list[int], polygons: list[int]) -> None:
     """Cache, in two queries, everything removing these polygons and edges touches."""
     uow.load(polygons=polygons)
-    corners = [uow.he(h)[ORIGIN] for p in polygons for h in _polygon_loop(uow, p)]
+    corners = [uow.he(h)[ORIGIN] for p in polygons for h in polygon_loop(uow, p)]
     uow.load(stars=vertices + corners)
 
 
-def _unlink(uow: UnitOfWork, h: int) -> None:
-    # removeEdge's "link one side off the model", read fresh each time because
-    # for a self-loop the second side sees the first side's relinking.
+def unlink(uow: UnitOfWork, h: int) -> None:
+    """Take ``h`` out of its origin's rotation (removeEdge's "link one side off the model").
+
+    Read fresh each time: for a self-loop the second side sees the first side's relinking.
+    """
     v = uow.he(h)[ORIGIN]
     arriving = uow.he(h)[PREV]
     leaving = uow.he(uow.he(h)[TWIN])[NEXT]
@@ -439,8 +460,8 @@ def remove_edge(uow: UnitOfWork, e: int) -> None:
     _load_footprint(uow, [uow.he(h)[ORIGIN], uow.he(t)[ORIGIN]], polygons)
     for p in polygons:
         remove_polygon(uow, p)
-    _unlink(uow, h)
-    _unlink(uow, t)
+    unlink(uow, h)
+    unlink(uow, t)
     uow.delete_edge(e)
 
 
@@ -449,7 +470,7 @@ def remove_vertex(uow: UnitOfWork, v: int) -> None:
     uow.load(stars=(v,))
     uow.vhe(v)
     out = uow.outgoing(v)
-    ends = [v] + [_target(uow, h) for h in out]
+    ends = [v] + [target(uow, h) for h in out]
     polygons = {uow.he(x)[POLYGON] for h in out for x in (h, uow.he(h)[TWIN])} - {None}
     _load_footprint(uow, ends, sorted(polygons))
     for e in sorted({uow.he(h)[EDGE] for h in out}):

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, kernel, navigation, properties, schema, summary, validation
+from hestore import bulk, euler, kernel, navigation, properties, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -323,13 +323,7 @@ class Mesh:
         >>> mesh.can_add_edge(a, b), mesh.can_add_edge(a, a)
         (True, False)
         """
-        ia, ib = self._edge_ends(a, b)
-        try:
-            with self._edit(dry_run=True) as uow:
-                kernel.add_edge(uow, ia, ib)
-        except TopologyError:
-            return False
-        return True
+        return self._can(kernel.add_edge, *self._edge_ends(a, b))
 
     def _loop_ids(self, loop: Sequence) -> tuple[str, list[int]]:
         if isinstance(loop, (str, bytes, dict, Handle)) or not hasattr(loop, "__iter__"):
@@ -405,13 +399,7 @@ class Mesh:
         >>> mesh.can_add_polygon([a, b, c]), mesh.can_add_polygon([a, c, b])
         (False, True)
         """
-        kind, ids = self._loop_ids(loop)
-        try:
-            with self._edit(dry_run=True) as uow:
-                self._add_polygon(uow, kind, ids)
-        except TopologyError:
-            return False
-        return True
+        return self._can(self._add_polygon, *self._loop_ids(loop))
 
     def remove_polygon(self, p: Polygon) -> None:
         """Remove a polygon; its half-edges become free and its edges stay.
@@ -458,6 +446,315 @@ class Mesh:
         iv = self._own(v, Vertex)
         with self._edit() as uow:
             kernel.remove_vertex(uow, iv)
+
+    # -- Euler operators ----------------------------------------------------
+
+    def _can(self, check, *args) -> bool:
+        """Whether an operation's checks pass: run in a dry run, nothing written, no lock taken."""
+        try:
+            with self._edit(dry_run=True) as uow:
+                check(uow, *args)
+        except TopologyError:
+            return False
+        return True
+
+    def _corner_arg(self, x: object, name: str) -> tuple[str, int]:
+        if isinstance(x, Vertex):
+            return "vertex", self._own(x, Vertex)
+        if isinstance(x, HalfEdge):
+            return "halfedge", self._own(x, HalfEdge)
+        raise InvalidInputError(f"{name} is a corner: a Vertex or a HalfEdge handle, not {type(x).__name__} {x!r}")
+
+    def split_edge(self, e: Edge, position=None, *, triangulate: bool = False) -> Vertex:
+        """Put a new vertex on an edge; each polygon beside it gains that corner.
+
+        ``e`` keeps its id and now ends at the new vertex; a new edge runs
+        from the new vertex to ``e``'s old end (PostGIS ``ST_ModEdgeSplit``).
+        A self-loop becomes two parallel edges. The new vertex is at
+        ``position``, else at the midpoint of the ends when both have one;
+        its properties are the ends' mean (``float64``) or the first end's.
+
+        With ``triangulate=True`` each triangle beside ``e`` is also cut from
+        the new vertex to its opposite corner, so a triangle mesh stays one
+        (pmp's and OpenMesh's triangle ``split``: a lone triangle gives
+        V 3→4, E 3→5, F 1→2). The cut-off triangle is a new polygon with
+        the old one's values.
+
+        Raises
+        ------
+        PolicyError
+            ``e`` is a loop and the mesh forbids parallel edges.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> a, b, c = (mesh.add_vertex(xyz) for xyz in [(0, 0, 0), (2, 0, 0), (0, 2, 0)])
+        >>> t = mesh.add_polygon([a, b, c])
+        >>> v = mesh.split_edge(mesh.find_halfedge(a, b).edge)
+        >>> v.position, t.degree, mesh.counts()
+        ((1.0, 0.0, 0.0), 4, Counts(vertices=4, halfedges=8, edges=4, polygons=1))
+        >>> _ = mesh.split_polygon(t, v, c)  # the same as split_edge(..., triangulate=True)
+        >>> sorted(p.degree for p in mesh.polygons()), mesh.counts().edges
+        ([3, 3], 5)
+        """
+        ie = self._own(e, Edge)
+        xyz = properties.check_position(position)
+        if not isinstance(triangulate, bool):
+            raise InvalidInputError(f"triangulate is True or False, not {triangulate!r}")
+        with self._edit() as uow:
+            return Vertex(self, euler.split_edge(uow, ie, xyz, triangulate))
+
+    def can_split_edge(self, e: Edge) -> bool:
+        """Whether `split_edge` would succeed (only a loop in a mesh without parallel edges cannot be split)."""
+        return self._can(euler.check_split_edge, self._own(e, Edge))
+
+    def split_polygon(self, p: Polygon, a: Vertex | HalfEdge, b: Vertex | HalfEdge) -> Edge:
+        """Cut a polygon in two with a new edge between two of its corners; return the edge.
+
+        ``a`` and ``b`` are corners of ``p``: vertices, or half-edges of ``p``
+        (whose origins are the corners) where a vertex is a corner more than
+        once. ``p`` keeps the part holding ``p.halfedge``; the other part is
+        a new polygon with ``p``'s property values. The new edge runs from
+        ``a`` to ``b``.
+
+        Raises
+        ------
+        EulerError
+            ``a`` or ``b`` is not a corner of ``p`` (``"not-corner"``), they are
+            the same corner (``"same-corner"``) or adjacent (``"adjacent-corners"``).
+        PolicyError
+            The new edge would be a loop or a parallel edge the mesh forbids.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> vs = [mesh.add_vertex() for _ in range(4)]
+        >>> quad = mesh.add_polygon(vs)
+        >>> e = mesh.split_polygon(quad, vs[0], vs[2])
+        >>> [p.degree for p in mesh.polygons()], mesh.can_split_polygon(quad, vs[0], vs[1])
+        ([3, 3], False)
+        """
+        ip = self._own(p, Polygon)
+        ca, cb = self._corner_arg(a, "a"), self._corner_arg(b, "b")
+        with self._edit() as uow:
+            return Edge(self, euler.split_polygon(uow, ip, ca, cb))
+
+    def can_split_polygon(self, p: Polygon, a: Vertex | HalfEdge, b: Vertex | HalfEdge) -> bool:
+        """Whether `split_polygon` would succeed; nothing is written and no lock is taken."""
+        corners = self._corner_arg(a, "a"), self._corner_arg(b, "b")
+        return self._can(euler.check_split_polygon, self._own(p, Polygon), *corners)
+
+    def join_polygons(self, e: Edge) -> Polygon:
+        """Remove an edge and merge the two polygons beside it into the one left of ``e.halfedge``.
+
+        The other polygon is removed (PostGIS ``ST_RemEdgeModFace``); the
+        survivor keeps its property values.
+
+        Raises
+        ------
+        EulerError
+            A side of ``e`` is free (``"boundary"``), both sides are one
+            polygon (``"same-polygon"``), or both are 1-gons on a loop
+            (``"degenerate"``: nothing would be left).
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> vs = [mesh.add_vertex() for _ in range(4)]
+        >>> t1, t2 = mesh.add_polygon([vs[0], vs[1], vs[2]]), mesh.add_polygon([vs[0], vs[2], vs[3]])
+        >>> quad = mesh.join_polygons(mesh.find_halfedge(vs[0], vs[2]).edge)
+        >>> quad == t1, quad.degree, mesh.counts().edges
+        (True, 4, 4)
+        """
+        ie = self._own(e, Edge)
+        with self._edit() as uow:
+            return Polygon(self, euler.join_polygons(uow, ie))
+
+    def can_join_polygons(self, e: Edge) -> bool:
+        """Whether `join_polygons` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_join_polygons, self._own(e, Edge))
+
+    def poke_polygon(self, p: Polygon, position=None) -> Vertex:
+        """Put a new vertex inside a polygon, joined to every corner: ``p.degree`` triangles.
+
+        ``p`` keeps the triangle on ``p.halfedge``; the others are new
+        polygons with ``p``'s values. The vertex is at ``position``, else at
+        the centroid of the corners when all have positions.
+
+        Raises
+        ------
+        PolicyError
+            ``p`` passes a vertex twice and the mesh forbids parallel edges.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> quad = mesh.add_polygon([mesh.add_vertex(xyz) for xyz in [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0)]])
+        >>> c = mesh.poke_polygon(quad)
+        >>> c.position, c.degree, sorted(p.degree for p in mesh.polygons())
+        ((1.0, 1.0, 0.0), 4, [3, 3, 3, 3])
+        """
+        ip = self._own(p, Polygon)
+        xyz = properties.check_position(position)
+        with self._edit() as uow:
+            return Vertex(self, euler.poke_polygon(uow, ip, xyz))
+
+    def can_poke_polygon(self, p: Polygon) -> bool:
+        """Whether `poke_polygon` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_poke_polygon, self._own(p, Polygon))
+
+    def flip_edge(self, e: Edge) -> Edge:
+        """Turn the diagonal of the two triangles beside an edge; every id is kept.
+
+        Raises
+        ------
+        EulerError
+            A side is free (``"boundary"``), not a triangle (``"not-triangle"``),
+            both sides are one polygon (``"same-polygon"``), the triangles share
+            their third vertex (``"degenerate"``), or the new edge would join
+            two vertices already joined (``"duplicate-edge"``, pmp's ``is_flip_ok``).
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> vs = [mesh.add_vertex() for _ in range(4)]
+        >>> _ = mesh.add_polygon([vs[0], vs[1], vs[2]]), mesh.add_polygon([vs[0], vs[2], vs[3]])
+        >>> e = mesh.flip_edge(mesh.find_halfedge(vs[0], vs[2]).edge)
+        >>> sorted(v.id for v in e.vertices()), mesh.find_halfedge(vs[0], vs[2])
+        ([1, 3], None)
+        """
+        ie = self._own(e, Edge)
+        with self._edit() as uow:
+            return Edge(self, euler.flip_edge(uow, ie))
+
+    def can_flip_edge(self, e: Edge) -> bool:
+        """Whether `flip_edge` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_flip_edge, self._own(e, Edge))
+
+    def collapse_edge(self, h: HalfEdge) -> Vertex:
+        """Merge ``h.origin`` into ``h.target``, which survives with its position and values.
+
+        Polygons beside the edge lose a corner; a triangle beside it vanishes
+        and its two other edges become one (the one at the target stays):
+        inside a triangle mesh, V − 1, E − 3, F − 2 (OpenMesh's ``collapse``).
+
+        Raises
+        ------
+        EulerError
+            The result would not be representable or would degenerate — the
+            link condition of OpenMesh's ``is_collapse_ok``, generalised:
+            ``"loop"``, ``"same-polygon"``, ``"degenerate"`` (a 1-gon, a
+            dangling edge), ``"link-condition"`` (edges or polygons away from
+            the edge would merge, or the surface would pinch).
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> vs = [mesh.add_vertex(xyz) for xyz in [(0, 1, 0), (1, 0, 0), (1, 1, 0), (1, 2, 0), (2, 1, 0)]]
+        >>> fan = [mesh.add_polygon([vs[i] for i in t]) for t in [(0, 2, 1), (0, 3, 2), (4, 2, 3), (4, 1, 2)]]
+        >>> w = mesh.collapse_edge(mesh.find_halfedge(vs[2], vs[1]))
+        >>> w, w.position, mesh.counts()
+        (Vertex(1), (1.0, 0.0, 0.0), Counts(vertices=4, halfedges=10, edges=5, polygons=2))
+        >>> [[v.id for v in p.vertices()] for p in mesh.polygons()], mesh.check()
+        ([[0, 3, 1], [4, 1, 3]], [])
+        """
+        ih = self._own(h, HalfEdge)
+        with self._edit() as uow:
+            return Vertex(self, euler.collapse_edge(uow, ih))
+
+    def can_collapse_edge(self, h: HalfEdge) -> bool:
+        """Whether `collapse_edge` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_collapse_edge, self._own(h, HalfEdge))
+
+    def heal_edges(self, e1: Edge, e2: Edge) -> Edge:
+        """Merge two edges that meet at a vertex of degree 2 into ``e1``; that vertex is removed.
+
+        Polygons through the vertex lose that corner (PostGIS ``ST_ModEdgeHeal``).
+
+        Raises
+        ------
+        EulerError
+            ``e1 == e2`` (``"same-edge"``), either is a loop (``"loop"``), they
+            share no vertex (``"not-adjacent"``) or other edges meet there (``"degree"``).
+        PolicyError
+            The healed edge would be a loop or a parallel edge the mesh forbids.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> a, b, c = (mesh.add_vertex() for _ in range(3))
+        >>> e1, e2 = mesh.add_edge(a, b), mesh.add_edge(b, c)
+        >>> mesh.heal_edges(e1, e2), e1.vertices(), mesh.counts().vertices
+        (Edge(0), (Vertex(0), Vertex(2)), 2)
+        """
+        i1, i2 = self._own(e1, Edge, " for e1"), self._own(e2, Edge, " for e2")
+        with self._edit() as uow:
+            return Edge(self, euler.heal_edges(uow, i1, i2))
+
+    def can_heal_edges(self, e1: Edge, e2: Edge) -> bool:
+        """Whether `heal_edges` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_heal_edges, self._own(e1, Edge, " for e1"), self._own(e2, Edge, " for e2"))
+
+    def fill_hole(self, h: HalfEdge) -> Polygon:
+        """Give the boundary loop of the free half-edge ``h`` a new polygon.
+
+        Raises
+        ------
+        HalfEdgeNotFreeError
+            ``h`` already has a polygon.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> p = mesh.add_polygon([mesh.add_vertex() for _ in range(5)])
+        >>> q = mesh.fill_hole(p.halfedge.twin)
+        >>> q.degree, mesh.stats().is_closed
+        (5, True)
+        """
+        ih = self._own(h, HalfEdge)
+        with self._edit() as uow:
+            return Polygon(self, euler.fill_hole(uow, ih))
+
+    def can_fill_hole(self, h: HalfEdge) -> bool:
+        """Whether `fill_hole` would succeed (whether ``h`` is free); nothing is written."""
+        return self._can(euler.check_fill_hole, self._own(h, HalfEdge))
+
+    def triangulate_polygon(self, p: Polygon) -> list[Polygon]:
+        """Cut a polygon into a fan of triangles from the corner of ``p.halfedge``.
+
+        ``p`` keeps its id as the first triangle; the others are new polygons
+        with ``p``'s values. A triangle (or a 1-gon or 2-gon, which cannot be
+        cut) is returned as ``[p]``.
+
+        Raises
+        ------
+        PolicyError
+            A diagonal of the fan would be a loop or a parallel edge the mesh forbids.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> hexagon = mesh.add_polygon([mesh.add_vertex() for _ in range(6)])
+        >>> triangles = mesh.triangulate_polygon(hexagon)
+        >>> triangles[0] == hexagon, [t.degree for t in triangles]
+        (True, [3, 3, 3, 3])
+        """
+        ip = self._own(p, Polygon)
+        with self._edit() as uow:
+            return [Polygon(self, q) for q in euler.triangulate_polygon(uow, ip)]
+
+    def can_triangulate_polygon(self, p: Polygon) -> bool:
+        """Whether `triangulate_polygon` would succeed; nothing is written and no lock is taken."""
+        return self._can(euler.check_triangulate_polygon, self._own(p, Polygon))
 
     # -- positions and properties -------------------------------------------
 

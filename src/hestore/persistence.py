@@ -140,7 +140,7 @@ _POSITION = ("id", "x", "y", "z")
 _CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
 _VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
-_HE_UPDATE = ("id", "next", "prev", "polygon")
+_HE_UPDATE = ("id", "origin", "next", "prev", "polygon")
 
 
 class Persistence:
@@ -228,6 +228,54 @@ class Persistence:
                 values[f"{name}{k}"] = ids[k] if k < len(ids) else last
         return stmt.rows(self.cursor(), values)
 
+    def positions(self, mesh_id: int, ids: list[int]) -> dict[int, tuple | None]:
+        """Stored positions of these vertices: ``{id: (x, y, z) or None}``."""
+        v = schema.vertices
+        out: dict[int, tuple | None] = {}
+        for start in range(0, len(ids), MAX_IN):
+            chunk = ids[start : start + MAX_IN]
+            size = in_list_bucket(len(chunk))
+
+            def build(size=size):
+                keys = [sa.bindparam(f"i{k}") for k in range(size)]
+                return sa.select(v.c.id, v.c.x, v.c.y, v.c.z).where(v.c.mesh_id == sa.bindparam("m"), v.c.id.in_(keys))
+
+            values = {"m": mesh_id, **{f"i{k}": chunk[min(k, len(chunk) - 1)] for k in range(size)}}
+            for i, x, y, z in self.st.get(("positions", size), build).rows(self.cursor(), values):
+                out[i] = None if x is None else (x, y, z)
+        return out
+
+    def values(self, mesh_id: int, props: list[Property], ids: list[int]) -> dict[tuple[int, int], list]:
+        """Stored values of these properties for these elements: ``{(property id, id): rows}``.
+
+        Rows are ``(part, v0, …)`` as `hestore.values.value_of` reads them;
+        an element without a stored value has no entry. One statement per
+        value table (and per 512 ids).
+        """
+        out: dict[tuple[int, int], list] = {}
+        by_table: dict = {}
+        for prop in props:
+            by_table.setdefault(table_of(prop.dtype), []).append(prop.id)
+        for table, pids in by_table.items():
+            cols = _value_columns(table)
+            for start in range(0, len(ids), MAX_IN):
+                chunk = ids[start : start + MAX_IN]
+                size, psize = in_list_bucket(len(chunk)), in_list_bucket(len(pids))
+
+                def build(table=table, size=size, psize=psize, cols=cols):
+                    keys = [sa.bindparam(f"i{k}") for k in range(size)]
+                    qs = [sa.bindparam(f"q{k}") for k in range(psize)]
+                    return sa.select(*(table.c[c] for c in cols)).where(
+                        table.c.mesh_id == sa.bindparam("m"), table.c.property.in_(qs), table.c.id.in_(keys)
+                    )
+
+                values = {"m": mesh_id}
+                values.update({f"i{k}": chunk[min(k, len(chunk) - 1)] for k in range(size)})
+                values.update({f"q{k}": pids[min(k, len(pids) - 1)] for k in range(psize)})
+                for row in self.st.get(("values", table.name, size, psize), build).rows(self.cursor(), values):
+                    out.setdefault((row[0], row[1]), []).append(row[2:])
+        return out
+
     # -- writes ----------------------------------------------------------
 
     def write(self, changes: ChangeSet) -> None:
@@ -258,6 +306,8 @@ class Persistence:
         write(mesh_id, p, "insert", _PAIR, changes.polygons.inserted)
         write(mesh_id, h, "update", _HE_UPDATE, changes.halfedges.updated)
         write(mesh_id, v, "update", _PAIR, changes.vertices.updated)
+        write(mesh_id, e, "update", _PAIR, changes.edges.updated)
+        write(mesh_id, p, "update", _PAIR, changes.polygons.updated)
         if changes.bulk is not None:
             self._write_bulk(mesh_id, changes.bulk)
         if changes.properties is not None:

@@ -453,6 +453,10 @@ class Session:
         self._alive(ref)
         with self._scope("edit", savepoint=False):
             uow = self._uow(ref)
+            if uow.staged:
+                # Set-based writes are written before the next edit, which may
+                # read the values they set (an operator deriving new values).
+                self._flush()
             with uow.operation():
                 yield uow
 
@@ -498,7 +502,9 @@ class Session:
 
     def _new_uow(self, ref: MeshRef, row: tuple) -> UnitOfWork:
         p = self._persistence
-        return UnitOfWork(ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]))
+        return UnitOfWork(
+            ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]), p.values, p.positions
+        )
 
     def lock(self, ref: MeshRef) -> None:
         """Take the mesh's writer lock for the open transaction (before reads that an edit relies on).

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
 from hestore.errors import ElementNotFoundError, InvariantViolationError, InvalidInputError, Violation
-from hestore.values import Property
+from hestore.values import Property, value_of
+from hestore.values import rows as value_rows
 
 __all__ = [
     "UnitOfWork",
@@ -150,9 +151,9 @@ class ChangeSet:
         Inserted ``(id, halfedge, x, y, z)``; updated ``(id, halfedge)``.
     halfedges : RowChanges
         Inserted ``(id, origin, next, prev, twin, edge, polygon)``; updated
-        ``(id, next, prev, polygon)`` (origin, twin and edge never change).
+        ``(id, origin, next, prev, polygon)`` (twin and edge never change).
     edges, polygons : RowChanges
-        Inserted ``(id, halfedge)``; never updated.
+        Inserted and updated ``(id, halfedge)``.
     counters : tuple of int
         ``(next_vertex, next_edge, next_polygon, next_property)`` after the flush.
     bump : int
@@ -197,6 +198,13 @@ class UnitOfWork:
     has_properties : bool
         Whether the mesh has any property as stored (if not, the catalogue
         is never loaded for the deletions of a flush).
+    read_values : callable, optional
+        ``read_values(mesh_id, props, ids) -> {(property id, id): rows}``:
+        stored values (`hestore.persistence.Persistence.values`), read when
+        an operator derives new elements' values from old ones (`derive`).
+    read_positions : callable, optional
+        ``read_positions(mesh_id, ids) -> {id: (x, y, z) or None}``: stored
+        positions (`hestore.persistence.Persistence.positions`).
     """
 
     def __init__(
@@ -208,10 +216,14 @@ class UnitOfWork:
         allow_multi_edges: bool,
         catalogue: Callable[[int], list] | None = None,
         has_properties: bool = False,
+        read_values: Callable[[int, list, list], dict] | None = None,
+        read_positions: Callable[[int, list], dict] | None = None,
     ) -> None:
         self.mesh_id = mesh_id
         self._load = load
         self._load_catalogue = catalogue
+        self._read_values = read_values
+        self._read_positions = read_positions
         self.allow_loops = allow_loops
         self.allow_multi_edges = allow_multi_edges
         self.next_vertex, self.next_edge, self.next_polygon, self.next_property = counters
@@ -242,6 +254,8 @@ class UnitOfWork:
         self._bulk: BulkRows | None = None
         self._drop = False
         self._undo: list | None = None
+        # a dry run (a ``can_*`` predicate): derived values and positions are not computed
+        self._dry = False
 
     # -- operations ------------------------------------------------------
 
@@ -253,6 +267,7 @@ class UnitOfWork:
         ``can_*`` predicates run the operation itself and throw it away).
         """
         self._undo = []
+        self._dry = not keep
         try:
             yield self
         except BaseException:
@@ -263,6 +278,7 @@ class UnitOfWork:
                 self.rollback_to(0)
         finally:
             self._undo = None
+            self._dry = False
 
     def mark(self) -> int:
         """A point inside the current operation that `rollback_to` can return to."""
@@ -374,8 +390,11 @@ class UnitOfWork:
             if kind == K_HALFEDGE:
                 if i not in he:
                     he[i] = he0[i] = row[2:]
-                if row[2] in outs and he[i] is not GONE:
-                    outs[row[2]].add(i)
+                # The cached origin, which an operator may have changed (the
+                # old and new origins' stars are cached before it does).
+                rec = he[i]
+                if rec is not GONE and rec[ORIGIN] in outs:
+                    outs[rec[ORIGIN]].add(i)
             else:
                 cur, loaded = by_kind[kind]
                 if i not in cur:
@@ -452,6 +471,27 @@ class UnitOfWork:
         r = self.he(h)
         self._set(self._he, h, r[:POLYGON] + (p,))
         self._touch(self._dirty_he, h)
+
+    def set_origin(self, h: int, v: int) -> None:
+        """Make half-edge ``h`` leave vertex ``v`` (an operator moving an edge's end)."""
+        r = self.he(h)
+        old = r[ORIGIN]
+        if old == v:
+            return
+        # Both stars are cached first, so they stay complete: a star loaded
+        # later would be read from the database, where h still leaves ``old``.
+        self.outgoing(old)
+        self.outgoing(v)
+        self._set(self._he, h, (v,) + r[ORIGIN + 1 :])
+        self._touch(self._dirty_he, h)
+        self._out_remove(old, h)
+        self._out_add(v, h)
+
+    def set_polygon_he(self, p: int, h: int) -> None:
+        """Point polygon ``p`` at half-edge ``h`` of its loop."""
+        if self.polygon_he(p) != h:
+            self._set(self._p, p, h)
+            self._touch(self._dirty_p, p)
 
     def set_vhe(self, v: int, h: int | None) -> None:
         self.vhe(v)
@@ -623,16 +663,121 @@ class UnitOfWork:
                 self._del(pending, key)
         self._set_attr("_bulk_vals", self._bulk_vals + [bulk])
 
+    @property
+    def staged(self) -> bool:
+        """Whether set-based writes are staged for the next flush."""
+        return bool(self._bulk_vals)
+
+    def _current(self, kind: str) -> dict:
+        return {"vertex": self._v, "halfedge": self._he, "edge": self._e, "polygon": self._p}[kind]
+
+    def positions(self, ids: Iterable[int]) -> dict[int, tuple | None]:
+        """The positions of these vertices as this transaction sees them."""
+        out: dict[int, tuple | None] = {}
+        stored = []
+        for v in dict.fromkeys(ids):
+            if v in self._pos_set:
+                out[v] = self._pos_set[v]
+            elif self._v0.get(v) is NEW:
+                out[v] = self._pos.get(v)
+            else:
+                stored.append(v)
+        if stored:
+            out.update(self._read_positions(self.mesh_id, stored))
+        return out
+
+    def mean_position(self, ids: Iterable[int]) -> tuple | None:
+        """The mean position of these vertices (one per entry), or None if one has none.
+
+        Not computed in a dry run, which only asks whether an operator would succeed.
+        """
+        ids = list(ids)
+        if self._dry or not ids:
+            return None
+        found = self.positions(ids)
+        xyz = [found.get(v) for v in ids]
+        if any(p is None or None in p for p in xyz):
+            return None
+        return tuple(sum(p[k] for p in xyz) / len(xyz) for k in range(3))
+
+    def _values(self, props: list[Property], ids: set[int]) -> dict:
+        """``{(property id, id): value or None}`` as this transaction sees them."""
+        out: dict = {}
+        stored: list[int] = []
+        loaded = {"vertex": self._v0, "halfedge": self._he0, "edge": self._e0, "polygon": self._p0}[props[0].kind]
+        for i in ids:
+            if loaded.get(i) is not NEW:  # else made since the last flush: nothing stored
+                stored.append(i)
+        found: dict = {}
+        if stored:
+            fresh = [p for p in props if p.id not in self._added]
+            if fresh:
+                found = self._read_values(self.mesh_id, fresh, stored)
+        for prop in props:
+            for i in ids:
+                pending = self._vals.get((prop.id, i))
+                if pending is not None:
+                    rows = pending[1]
+                    out[prop.id, i] = prop.default if rows is UNSET else value_of(prop, rows)
+                else:
+                    out[prop.id, i] = value_of(prop, found.get((prop.id, i), []))
+        return out
+
+    def derive(self, kind: str, plan: Iterable[tuple]) -> None:
+        """Give elements an operator made or changed their values, from elements they came from.
+
+        ``plan`` holds ``(target, how, sources)``; every source is read as it
+        was before this call. ``how`` is ``"copy"`` (the first source's
+        value), ``"mean"`` (the mean of the sources for ``float64``, the first
+        source's otherwise: a new vertex) or ``"corner"`` (the mean for
+        ``float64``, the default otherwise: a new corner). A mean is taken
+        only where every source has a value. This is the one place where
+        operators meet properties (SPEC §3.1): they say where an element
+        came from, the unit of work carries its values.
+        """
+        if self._dry:
+            return
+        catalogue = self.catalogue()
+        props = [p for p in catalogue.values() if p.kind == kind] if catalogue else []
+        if not props:
+            return
+        plan = list(plan)
+        values = self._values(props, {s for _, _, sources in plan for s in sources})
+        loaded = {"vertex": self._v0, "halfedge": self._he0, "edge": self._e0, "polygon": self._p0}[kind]
+        for target, how, sources in plan:
+            for prop in props:
+                found = [values[prop.id, s] for s in sources]
+                if how == "copy" or (prop.dtype != "float64" and how == "mean"):
+                    value = found[0]
+                elif prop.dtype != "float64":
+                    value = None
+                elif any(x is None for x in found):
+                    value = None
+                elif prop.shape:
+                    value = tuple(sum(x[k] for x in found) / len(found) for k in range(prop.shape[0]))
+                else:
+                    value = sum(found) / len(found)
+                if value is None:
+                    if loaded.get(target) is NEW and (prop.id, target) not in self._vals:
+                        continue  # nothing stored, nothing to remove
+                    self._set(self._vals, (prop.id, target), (prop, UNSET))
+                else:
+                    self._set(self._vals, (prop.id, target), (prop, value_rows(prop, value)))
+
     def _property_changes(self, deleted: dict[str, list]) -> PropertyChanges | None:
         purge = []
         if any(deleted.values()) and (self._props is None or self._props):
             for prop in self.catalogue().values():
                 if deleted[prop.kind]:
                     purge.append((prop, deleted[prop.kind]))
-        positions = [(v, *(xyz or (None, None, None))) for v, xyz in sorted(self._pos_set.items())]
+        positions = [
+            (v, *(xyz or (None, None, None))) for v, xyz in sorted(self._pos_set.items()) if self._v.get(v) is not GONE
+        ]
+        # Values of elements made and removed since the last flush are never written.
+        values = {key: val for key, val in self._vals.items() if self._current(val[0].kind).get(key[1]) is not GONE}
         changes = PropertyChanges(
             list(self._removed.values()), list(self._added.values()), list(self._bulk_vals),
-            dict(self._vals), positions, purge,
+            values, positions, purge,
         )
         return changes if changes else None
 
@@ -673,7 +818,7 @@ class UnitOfWork:
             elif cur is GONE:
                 he.deleted.append(h)
             elif cur != old:
-                he.updated.append((h, cur[NEXT], cur[PREV], cur[POLYGON]))
+                he.updated.append((h, cur[ORIGIN], cur[NEXT], cur[PREV], cur[POLYGON]))
         v = RowChanges([], [], [])
         for i in sorted(self._dirty_v):
             cur, old = self._v[i], self._v0.get(i, NEW)
@@ -694,6 +839,8 @@ class UnitOfWork:
                         rows.inserted.append((i, cur))
                 elif cur is GONE:
                     rows.deleted.append(i)
+                elif cur != old:
+                    rows.updated.append((i, cur))
             pairs.append(rows)
         deleted = {"vertex": v.deleted, "halfedge": he.deleted, "edge": pairs[0].deleted, "polygon": pairs[1].deleted}
         properties = self._property_changes(deleted)
