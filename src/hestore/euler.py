@@ -57,14 +57,32 @@ __all__ = [
 ]
 
 
-def _edge_ends(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
-    """``(h, t, a, b)``: ``e.halfedge`` (a→b), its twin, and both ends' stars cached."""
+def _edge_ends(uow: UnitOfWork, e: int, polygons: bool = False) -> tuple[int, int, int, int]:
+    """``(h, t, a, b)``: ``e.halfedge`` (a→b), its twin, and both ends' stars cached.
+
+    With ``polygons``, the polygons on both sides are cached by the same query.
+    """
     uow.load(edges=(e,))
     h = uow.edge_he(e)
     t = uow.he(h)[TWIN]
     a, b = uow.he(h)[ORIGIN], uow.he(t)[ORIGIN]
-    uow.load(stars=(a, b))
+    sides = [p for p in (uow.he(h)[POLYGON], uow.he(t)[POLYGON]) if p is not None] if polygons else ()
+    uow.load(stars=(a, b), polygons=sides)
     return h, t, a, b
+
+
+def _is_triangle(uow: UnitOfWork, h: int) -> bool:
+    """Whether the cycle of ``h`` (polygon or free) has three half-edges."""
+    x = uow.he(uow.he(h)[NEXT])[NEXT]
+    return x != h and uow.he(x)[NEXT] == h
+
+
+def _degree_at_most(uow: UnitOfWork, h: int, k: int) -> int:
+    """The length of ``h``'s cycle, or ``k + 1`` if it is longer than ``k`` (walks at most ``k`` steps)."""
+    x, n = uow.he(h)[NEXT], 1
+    while x != h and n <= k:
+        x, n = uow.he(x)[NEXT], n + 1
+    return n
 
 
 def _refuse(message: str, refs, reason: str) -> EulerError:
@@ -131,11 +149,10 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
     """
     h, t, a, b = check_split_edge(uow, e)
     hr, tr = uow.he(h), uow.he(t)
-    triangles = []
-    if triangulate:
-        uow.load(polygons=[p for p in {hr[POLYGON], tr[POLYGON]} if p is not None])
-        sides = [(x, uow.he(x)[POLYGON]) for x in (h, t)]
-        triangles = [x for x, p in sides if p is not None and len(polygon_loop(uow, p)) == 3]
+    triangles = [x for x in (h, t) if uow.he(x)[POLYGON] is not None and _is_triangle(uow, x)] if triangulate else []
+    if triangles:
+        # the far corners, whose stars the cuts change, in one query
+        uow.load(stars=[uow.he(uow.he(x)[PREV])[ORIGIN] for x in triangles], polygons=[uow.he(x)[POLYGON] for x in triangles])
     after_h, before_t, after_t = hr[NEXT], tr[PREV], tr[NEXT]
     v = uow.new_vertex(position if position is not None else uow.mean_position((a, b)))
     e2, h2, t2 = uow.new_edge(v, b)
@@ -231,7 +248,7 @@ def split_polygon(uow: UnitOfWork, p: int, a: tuple[str, int], b: tuple[str, int
 
 def check_join_polygons(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
     """``(h, t, kept polygon, removed polygon)`` of `join_polygons`."""
-    h, t, a, b = _edge_ends(uow, e)
+    h, t, a, b = _edge_ends(uow, e, polygons=True)
     p, q = uow.he(h)[POLYGON], uow.he(t)[POLYGON]
     if p is None or q is None:
         free = h if p is None else t
@@ -246,8 +263,7 @@ def check_join_polygons(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
             (("edge", e), ("polygon", p)),
             "same-polygon",
         )
-    uow.load(polygons=(p, q))
-    if len(polygon_loop(uow, p)) + len(polygon_loop(uow, q)) == 2:
+    if uow.he(h)[NEXT] == h and uow.he(t)[NEXT] == t:
         raise _refuse(
             f"polygons {p} and {q} are 1-gons on both sides of loop edge {e}: joining them leaves an empty polygon",
             (("edge", e), ("polygon", p), ("polygon", q)),
@@ -344,12 +360,12 @@ def check_flip_edge(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
     """``(h, t, c, d)`` of `flip_edge`: the edge's half-edges and the new diagonal's ends."""
     h, t, a, b = _edge_ends(uow, e)
     p, q = _two_polygons(uow, e, h, t, "a flip")
-    uow.load(polygons=(p, q))
-    for poly in (p, q):
-        n = len(polygon_loop(uow, poly))
-        if n != 3:
+    for x, poly in ((h, p), (t, q)):
+        if not _is_triangle(uow, x):
+            n = _degree_at_most(uow, x, 3)
+            what = f"{n} corners" if n <= 3 else "more than 3 corners"
             raise _refuse(
-                f"polygon {poly} beside edge {e} has {n} corners: only the diagonal of two triangles can be flipped",
+                f"polygon {poly} beside edge {e} has {what}: only the diagonal of two triangles can be flipped",
                 (("edge", e), ("polygon", poly)),
                 "not-triangle",
             )
@@ -360,7 +376,7 @@ def check_flip_edge(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
             (("edge", e), ("vertex", c)),
             "degenerate",
         )
-    uow.load(stars=(c, d))
+    uow.load(stars=(c, d), polygons=(p, q))
     joined = edges_between(uow, c, d)
     if joined:
         f = uow.he(joined[0])[EDGE]
@@ -417,24 +433,21 @@ class _Collapse(NamedTuple):
 
 def check_collapse_edge(uow: UnitOfWork, h: int) -> _Collapse:
     """The plan of `collapse_edge`, after the generalised link condition."""
-    uow.he(h)
-    e = uow.he(h)[EDGE]
-    uow.load(edges=(e,))
-    t = uow.he(h)[TWIN]
+    uow.load(halfedges=(h, h ^ 1))  # edge e owns half-edges 2e and 2e + 1
+    e, t = uow.he(h)[EDGE], uow.he(h)[TWIN]
     u, w = uow.he(h)[ORIGIN], uow.he(t)[ORIGIN]
     if u == w:
         raise _refuse(f"edge {e} is a self-loop at vertex {u}: there is nothing to collapse", (("edge", e),), "loop")
-    uow.load(stars=(u, w))
-    refs = (("halfedge", h), ("edge", e), ("vertex", u), ("vertex", w))
     sides = [uow.he(x)[POLYGON] for x in (h, t)]
+    uow.load(stars=(u, w), polygons=[p for p in sides if p is not None], edges=(e,))
+    refs = (("halfedge", h), ("edge", e), ("vertex", u), ("vertex", w))
     if sides[0] is not None and sides[0] == sides[1]:
         raise _refuse(f"both sides of edge {e} are polygon {sides[0]}", refs + (("polygon", sides[0]),), "same-polygon")
-    uow.load(polygons=[p for p in sides if p is not None])
     opposite, dissolve = [], []
     for x, p in zip((h, t), sides):
         if p is None:
             continue
-        n = len(polygon_loop(uow, p))
+        n = _degree_at_most(uow, x, 3)
         if n < 3:
             raise _refuse(
                 f"polygon {p} beside edge {e} is a {n}-gon: collapsing the edge would leave a 1-gon",
@@ -554,6 +567,14 @@ def collapse_edge(uow: UnitOfWork, h: int) -> int:
     """
     plan = check_collapse_edge(uow, h)
     t, u, w = plan.t, plan.u, plan.w
+    if plan.dissolve:
+        # What the dissolving touches, in one query: the far corners' stars, the outer polygons, the dropped edges.
+        outer = [uow.he(drop)[TWIN] for _keep, drop in plan.dissolve]
+        uow.load(
+            stars=[v for pair in plan.dissolve for v in (uow.he(x)[ORIGIN] for x in pair) if v not in (u, w)],
+            polygons=[p for p in (uow.he(o)[POLYGON] for o in outer) if p is not None],
+            edges=[uow.he(drop)[EDGE] for _keep, drop in plan.dissolve],
+        )
     gone = {h, t}
     for x in sorted(uow.outgoing(u) - gone):
         uow.set_origin(x, w)
