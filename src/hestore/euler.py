@@ -152,7 +152,8 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
     triangles = [x for x in (h, t) if uow.he(x)[POLYGON] is not None and _is_triangle(uow, x)] if triangulate else []
     if triangles:
         # the far corners, whose stars the cuts change, in one query
-        uow.load(stars=[uow.he(uow.he(x)[PREV])[ORIGIN] for x in triangles], polygons=[uow.he(x)[POLYGON] for x in triangles])
+        far = [uow.he(uow.he(x)[PREV])[ORIGIN] for x in triangles]
+        uow.load(stars=far, polygons=[uow.he(x)[POLYGON] for x in triangles])
     after_h, before_t, after_t = hr[NEXT], tr[PREV], tr[NEXT]
     v = uow.new_vertex(position if position is not None else uow.mean_position((a, b)))
     e2, h2, t2 = uow.new_edge(v, b)
