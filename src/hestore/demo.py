@@ -4,7 +4,9 @@ It builds the mesh ``"demo"`` — a polygon fan, a wire edge, a self-loop
 bounding a 1-gon, two parallel edges bounding a 2-gon and two triangles
 meeting at a single vertex — in one transaction, edits it in a second one,
 shows a failed transaction rolled back and a non-manifold edit refused
-without changing anything, and prints a short summary. It replaces an
+without changing anything, applies Euler operators (a split wire edge, a
+flipped diagonal, a split self-loop) and a refused collapse, and prints a
+short summary. It replaces an
 existing ``"demo"`` mesh, so it can be run any number of times.
 
 The demo is also a smoke test: where the store does not behave as promised,
@@ -170,6 +172,28 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
     )
     out(f"  {refusal}")
     out("  nothing changed: counts and revision are as before")
+
+    # Euler operators, on the fan and on the shapes manifold-only libraries refuse.
+    with store.transaction():
+        middle = mesh.split_edge(wire)  # a wire edge splits like any other
+        diagonal = mesh.flip_edge(mesh.find_halfedge(centre, rim[2]).edge)
+        corner = mesh.split_edge(loop)  # the loop becomes two parallel edges, the 1-gon a 2-gon
+    ends = sorted(v.id for v in diagonal.vertices())
+    out(
+        f"Euler operators in one transaction: vertex {middle.id} splits wire edge {wire.id}, "
+        f"edge {diagonal.id} flipped to join vertices {ends[0]} and {ends[1]}, "
+        f"vertex {corner.id} splits the self-loop (polygon {monogon.id} is now a {monogon.degree}-gon)"
+    )
+    before = (mesh.counts(), mesh.revision)
+    if mesh.can_collapse_edge(e1.halfedges()[0]):
+        raise RuntimeError("hestore demo: collapsing an edge of a 2-gon was allowed; this is a bug in hestore")
+    try:
+        mesh.collapse_edge(e1.halfedges()[0])
+    except TopologyError as exc:
+        refusal = f"{type(exc).__name__} ({exc.reason}): {exc}"
+    _unchanged(mesh, before, "a refused collapse")
+    out(f"refused: collapsing edge {e1.id} of the 2-gon {digon.id}")
+    out(f"  {refusal}")
 
     counts = mesh.counts()
     violations = mesh.check()
