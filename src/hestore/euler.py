@@ -118,7 +118,8 @@ def _cut(uow: UnitOfWork, ha: int, hb: int, keep_first: bool | None = None) -> t
     for h in moved:
         uow.set_polygon(h, q)
     uow.set_polygon(kept[-1], p)
-    uow.set_polygon_he(p, kept[0])
+    if uow.polygon_he(p) not in kept:
+        uow.set_polygon_he(p, kept[0])
     return e, x, y, q
 
 
@@ -127,7 +128,7 @@ def _cut(uow: UnitOfWork, ha: int, hb: int, keep_first: bool | None = None) -> t
 
 def check_split_edge(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
     """``(h, t, a, b)`` of `split_edge`; refused only where the mesh forbids parallel edges and ``e`` is a loop."""
-    h, t, a, b = _edge_ends(uow, e)
+    h, t, a, b = _edge_ends(uow, e, polygons=True)
     if a == b and not uow.allow_multi_edges:
         raise PolicyError(
             f"edge {e} is a self-loop at vertex {a}: splitting it makes two parallel edges, which this mesh forbids",
@@ -165,6 +166,8 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
     uow.link(t2, t)
     uow.set_polygon(h2, hr[POLYGON])
     uow.set_polygon(t2, tr[POLYGON])
+    if tr[POLYGON] is not None and uow.polygon_he(tr[POLYGON]) == t:
+        uow.set_polygon_he(tr[POLYGON], t2)  # the polygon's first corner stays at b
     if uow.vhe(b) == t:
         uow.set_vhe(b, t2)
     uow.set_vhe(v, t if hr[POLYGON] is not None and tr[POLYGON] is None else h2)

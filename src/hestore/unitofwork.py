@@ -245,6 +245,8 @@ class UnitOfWork:
         self._p: dict[int, Any] = {}
         self._p0: dict[int, Any] = {}
         self._pos: dict[int, tuple] = {}
+        # stored positions read since the last flush (the writer lock keeps them valid until it)
+        self._xyz: dict[int, tuple | None] = {}
         # vertices whose every outgoing half-edge (and its twin) is cached
         self._out: dict[int, set[int]] = {}
         self._dirty_he: set[int] = set()
@@ -680,10 +682,14 @@ class UnitOfWork:
                 out[v] = self._pos_set[v]
             elif self._v0.get(v) is NEW:
                 out[v] = self._pos.get(v)
+            elif v in self._xyz:
+                out[v] = self._xyz[v]
             else:
                 stored.append(v)
         if stored:
-            out.update(self._read_positions(self.mesh_id, stored))
+            found = self._read_positions(self.mesh_id, stored)
+            self._xyz.update(found)
+            out.update(found)
         return out
 
     def mean_position(self, ids: Iterable[int]) -> tuple | None:
@@ -859,6 +865,7 @@ class UnitOfWork:
                 old_d[i] = NEW if cur is GONE else cur
             dirty.clear()
         self._pos.clear()
+        self._xyz.clear()
         self._bulk = None
         self._added, self._removed, self._vals, self._pos_set = {}, {}, {}, {}
         self._bulk_vals = []
