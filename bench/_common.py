@@ -161,6 +161,13 @@ def timed(fn: Callable[[], Any], *, profile: bool = False, lines: int = 20) -> T
     cpu = cpu_seconds() - c0
     if not profiler:
         return Timed(result, seconds, cpu)
+    text, dominant = profile_report(profiler, lines)
+    return Timed(result, seconds, cpu, text, dominant)
+
+
+def profile_report(profiler: cProfile.Profile, lines: int = 20) -> tuple[str, str]:
+    """A finished profile as ``(text, dominant)``: the top ``lines`` functions by own time and by cumulative
+    time, and a line naming the function with the most own time and hestore's functions by cumulative time."""
     raw = pstats.Stats(profiler)
     ours = f"{os.sep}hestore{os.sep}"
     mine = sorted(((row[3], f"{func} ({os.path.basename(file)}:{line})")
@@ -170,9 +177,10 @@ def timed(fn: Callable[[], Any], *, profile: bool = False, lines: int = 20) -> T
     stats.sort_stats("tottime").print_stats(lines)
     stats.sort_stats("cumulative").print_stats(lines)
     (file, line, func), row = max(stats.stats.items(), key=lambda kv: kv[1][2])
-    dominant = (f"{func} ({file}:{line}): {row[2]:.2f} s of its own time, {row[3]:.2f} s with callees; "
-                "hestore's functions by time with callees: " + ", ".join(f"{name} {t:.2f} s" for t, name in mine[:5]))
-    return Timed(result, seconds, cpu, buf.getvalue(), dominant)
+    heaviest = ", ".join(f"{name} {fmt_time(t)}" for t, name in mine[:5])
+    dominant = (f"{func} ({file}:{line}): {fmt_time(row[2])} of its own time, {fmt_time(row[3])} with callees; "
+                f"hestore's functions by time with callees: {heaviest}")
+    return buf.getvalue(), dominant
 
 
 def best_of(fn, *args, repeat: int = 2):
@@ -704,11 +712,17 @@ def meshes_dir() -> str:
     return os.path.normpath(os.path.join(HERE, "..", "..", "shared", "meshes"))
 
 
-def grid_arrays(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The triangulated n×n vertex grid: positions (n², 3) and triangles (2(n-1)², 3), counter-clockwise."""
-    j, i = np.divmod(np.arange(n * n, dtype=np.int64), n)
-    positions = np.column_stack([i, j, np.zeros(n * n)]).astype(np.float64)
-    v = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+def grid_arrays(n: int, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The triangulated n×n vertex grid (n×m: ``m`` rows of ``n``): positions (nm, 3) and triangles
+    (2(n-1)(m-1), 3), counter-clockwise.
+
+    Vertex ``j·n + i`` is at ``(i, j, 0)``; cell ``(i, j)``, ``c = j·(n-1) + i``, holds triangles ``2c``
+    ``(v, v+1, v+n+1)`` and ``2c+1`` ``(v, v+n+1, v+n)`` with ``v = j·n + i``.
+    """
+    m = n if m is None else m
+    j, i = np.divmod(np.arange(n * m, dtype=np.int64), n)
+    positions = np.column_stack([i, j, np.zeros(n * m)]).astype(np.float64)
+    v = (np.arange(m - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
     faces = np.empty((2 * len(v), 3), dtype=np.int64)
     faces[0::2] = np.column_stack([v, v + 1, v + n + 1])
     faces[1::2] = np.column_stack([v, v + n + 1, v + n])

@@ -1,6 +1,7 @@
 """Run every benchmark, one after the other (SPEC §9).
 
-    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties] [--backends sqlite,postgresql]
+    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties,euler]
+                        [--backends sqlite,postgresql]
 
 Each benchmark runs in its own process (``python bench/<name>.py``), never two
 at once, with ``--quick`` and the common options (``--backends``,
@@ -20,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from _common import HERE, Parser, log, meshes_dir, print_table, run_command, selected_backends  # noqa: E402
 
-BENCHMARKS = ("edits", "import", "graph", "reads", "properties")
+BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler")
 TAKES_MESHES = ("import", "graph")  # the benchmarks that take --meshes-dir
 
 
