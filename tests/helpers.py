@@ -1,7 +1,8 @@
 """Helpers shared by the kernel and navigation tests.
 
-* `dump` — the full content of every hestore table, as sorted tuples, so that
-  "a refused operation changed nothing" is one equality;
+* `dump` — the full content of every hestore table (the property catalogue and
+  value tables included), as sorted tuples, so that "a refused operation
+  changed nothing" is one equality;
 * `assert_refused` — the standard check of a refused operation: the typed
   error, and unchanged tables and revision, both outside a transaction block
   and inside one (which then goes on and commits another edit);
@@ -19,7 +20,10 @@ import sqlalchemy as sa
 import hestore
 from hestore import schema
 
-TABLES = (schema.meshes, schema.vertices, schema.halfedges, schema.edges, schema.polygons)
+TABLES = (
+    schema.meshes, schema.vertices, schema.halfedges, schema.edges, schema.polygons, schema.properties,
+    *schema.VALUE_TABLES,
+)
 
 
 def _rows(conn, table: sa.Table) -> list[tuple]:
@@ -52,11 +56,9 @@ def committed_url(store: hestore.Store) -> str:
 def _without(d: dict, vertex_id: int, mesh_id: int) -> dict:
     """``d`` without the meshes row of ``mesh_id`` and without vertex ``vertex_id`` of it."""
     return {
+        **d,
         "meshes": [r for r in d["meshes"] if r[0] != mesh_id],
         "vertices": [r for r in d["vertices"] if (r[0], r[1]) != (mesh_id, vertex_id)],
-        "halfedges": d["halfedges"],
-        "edges": d["edges"],
-        "polygons": d["polygons"],
     }
 
 
