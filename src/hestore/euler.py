@@ -126,14 +126,35 @@ def _cut(uow: UnitOfWork, ha: int, hb: int, keep_first: bool | None = None) -> t
 # -- split_edge -------------------------------------------------------------
 
 
-def check_split_edge(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
-    """``(h, t, a, b)`` of `split_edge`; refused only where the mesh forbids parallel edges and ``e`` is a loop."""
+def check_split_edge(uow: UnitOfWork, e: int, triangulate: bool = False) -> tuple[int, int, int, int]:
+    """``(h, t, a, b)`` of `split_edge`.
+
+    Refused only where the mesh forbids parallel edges and ``e`` is a loop,
+    or (``triangulate``) a cut would join the new vertex to a vertex it is
+    joined to already: the triangles beside ``e`` share their third corner,
+    or a triangle's third corner is an end of ``e``.
+    """
     h, t, a, b = _edge_ends(uow, e, polygons=True)
-    if a == b and not uow.allow_multi_edges:
+    if uow.allow_multi_edges:
+        return h, t, a, b
+    if a == b:
         raise PolicyError(
             f"edge {e} is a self-loop at vertex {a}: splitting it makes two parallel edges, which this mesh forbids",
             (("edge", e), ("vertex", a)),
         )
+    if triangulate:
+        joined = {a, b}
+        for x in (h, t):
+            if uow.he(x)[POLYGON] is None or not _is_triangle(uow, x):
+                continue
+            far = uow.he(uow.he(x)[PREV])[ORIGIN]
+            if far in joined:
+                raise PolicyError(
+                    f"splitting edge {e} with triangulate=True would join the new vertex to vertex {far} by two "
+                    f"edges, which this mesh forbids",
+                    (("edge", e), ("vertex", far), ("polygon", uow.he(x)[POLYGON])),
+                )
+            joined.add(far)
     return h, t, a, b
 
 
@@ -148,7 +169,7 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
     from ``v`` to its opposite corner (pmp's and OpenMesh's triangle
     ``split``).
     """
-    h, t, a, b = check_split_edge(uow, e)
+    h, t, a, b = check_split_edge(uow, e, triangulate)
     hr, tr = uow.he(h), uow.he(t)
     triangles = [x for x in (h, t) if uow.he(x)[POLYGON] is not None and _is_triangle(uow, x)] if triangulate else []
     if triangles:
@@ -505,9 +526,16 @@ def check_collapse_edge(uow: UnitOfWork, h: int) -> _Collapse:
     to_w: dict[int, int] = {}
     for x in out_w:
         to_w[target(uow, x)] = to_w.get(target(uow, x), 0) + 1
+    if to_u.get(u) and to_w.get(w) and not uow.allow_multi_edges:
+        raise PolicyError(
+            f"vertices {u} and {w} both have a self-loop: collapsing edge {e} would put two loops, parallel edges, "
+            f"at vertex {w}, which this mesh forbids",
+            refs,
+        )
     if to_u[w] > 1:
         raise _refuse(
-            f"vertices {u} and {w} are joined by {to_u[w]} edges: the others would become self-loops",
+            f"vertices {u} and {w} are joined by {to_u[w]} edges: collapsing edge {e} would make the others "
+            f"self-loops",
             refs,
             "link-condition",
         )

@@ -505,9 +505,15 @@ class Mesh:
         with self._edit() as uow:
             return Vertex(self, euler.split_edge(uow, ie, xyz, triangulate))
 
-    def can_split_edge(self, e: Edge) -> bool:
-        """Whether `split_edge` would succeed (only a loop in a mesh without parallel edges cannot be split)."""
-        return self._can(euler.check_split_edge, self._own(e, Edge))
+    def can_split_edge(self, e: Edge, *, triangulate: bool = False) -> bool:
+        """Whether `split_edge` would succeed; nothing is written and no lock is taken.
+
+        Only a mesh that forbids parallel edges refuses a split: of a loop,
+        or with ``triangulate`` where a cut would double an edge.
+        """
+        if not isinstance(triangulate, bool):
+            raise InvalidInputError(f"triangulate is True or False, not {triangulate!r}")
+        return self._can(euler.check_split_edge, self._own(e, Edge), triangulate)
 
     def split_polygon(self, p: Polygon, a: Vertex | HalfEdge, b: Vertex | HalfEdge) -> Edge:
         """Cut a polygon in two with a new edge between two of its corners; return the edge.
