@@ -42,6 +42,7 @@ import subprocess
 import sys
 import time
 import uuid
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -743,3 +744,32 @@ def import_mesh(store: hestore.Store, mesh: str, n: int, folder: str, grid: tupl
         positions, faces = grid if grid is not None else grid_arrays(n)
         return store.import_arrays("grid", positions, faces)
     return store.import_file(os.path.join(folder, FILES[mesh]), mesh)
+
+
+class Statements:
+    """Counts the statements hestore sends on its driver cursor, by kind: install with
+    ``store.session.traced(counter)``.
+
+    The callback sees the SQL text only: an ``executemany`` counts as one
+    statement, and how many parameter sets (rows) it carried is not known.
+    """
+
+    KINDS = ("SELECT", "INSERT", "UPDATE", "DELETE", "TXN")
+
+    def __init__(self) -> None:
+        self.by_kind: Counter = Counter()
+
+    def __call__(self, sql: str) -> None:
+        word = sql.lstrip().split(None, 1)[0].upper()
+        if word in ("WITH", "(SELECT"):
+            word = "SELECT"
+        self.by_kind[word if word in self.KINDS else "TXN"] += 1  # TXN: BEGIN, COMMIT, SAVEPOINT, RELEASE, ...
+
+    def snapshot(self) -> Counter:
+        return Counter(self.by_kind)
+
+    @classmethod
+    def per(cls, counts: Counter, n: int) -> str:
+        """Statements per operation, by kind."""
+        parts = [f"{k} {counts[k] / n:.3g}" for k in cls.KINDS if counts[k]]
+        return f"{sum(counts.values()) / n:.3g} statements: " + ", ".join(parts)

@@ -102,6 +102,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
+    Statements,
     Figure,
     Parser,
     Runner,
@@ -455,21 +456,6 @@ def job_ops(spec: dict) -> dict:
             for family in (CONTEXT, *OPS)}
 
 
-class Statements:
-    """Counts the statements hestore sends on its driver cursor, by kind (``store.session.traced``)."""
-
-    KINDS = ("SELECT", "INSERT", "UPDATE", "DELETE", "TXN")
-
-    def __init__(self) -> None:
-        self.by_kind: Counter = Counter()
-
-    def __call__(self, sql: str) -> None:
-        word = sql.lstrip().split(None, 1)[0].upper()
-        if word in ("WITH", "(SELECT"):
-            word = "SELECT"
-        self.by_kind[word if word in self.KINDS else "TXN"] += 1
-
-
 # ==========================================================================
 # The whole-mesh job: 1-to-4 subdivision
 
@@ -491,7 +477,6 @@ def job_subdivide(spec: dict) -> dict:
     t_plan = time.perf_counter()
     triangles = []  # (polygon, its corners a, b, c from p.halfedge's origin, the id of p.halfedge)
     edges: dict[tuple[int, int], object] = {}
-    halfedge_of: dict[tuple[int, int], int] = {}
     for j in range(j0, j0 + h):
         for i in range(i0, i0 + w):
             for pid in cell_triangles(nx, i, j):
@@ -505,11 +490,8 @@ def job_subdivide(spec: dict) -> dict:
                     if key not in edges:
                         he = mesh.find_halfedge(V(mesh, key[0]), V(mesh, key[1]))
                         edges[key] = he.edge
-                        halfedge_of[key] = he.edge.halfedge.id
-                first = p.halfedge.id
-                triangles.append((p, corners, first))
-    # split_edge keeps the origin of e.halfedge and moves its twin's to the new vertex (see cut_plan).
-    plan = [(p, cut_plan(a, b, c, halfedge_of[_key(a, b)] == first)) for p, (a, b, c), first in triangles]
+                triangles.append((p, corners))
+    plan = [(p, cut_plan(a, b, c)) for p, (a, b, c) in triangles]
     plan_seconds = time.perf_counter() - t_plan
     E, F = len(edges), len(triangles)
     before = mesh.counts()
@@ -593,26 +575,16 @@ def _key(x: int, y: int) -> tuple[int, int]:
     return (x, y) if x < y else (y, x)
 
 
-def cut_plan(a: int, b: int, c: int, keeps_origin: bool) -> list[tuple[tuple[int, int], tuple[int, int]]]:
-    """The three cuts of triangle (a, b, c) once its edges are split: the edge keys of the new vertices each cut
-    joins, in an order that leaves ``p`` the uncut rest until the last cut.
+def cut_plan(a: int, b: int, c: int) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The three cuts of triangle (a, b, c), ``p.halfedge`` from a, once its edges are split: the edge keys of
+    the new vertices each cut joins.
 
-    ``p.halfedge`` runs from a to b before the splits; afterwards it starts at a (``keeps_origin``: it was its
-    edge's halfedge) or at the new vertex on a–b. ``split_polygon(p, u, w)`` leaves ``p`` the part holding
-    ``p.halfedge`` and points ``p.halfedge`` at that part's first half-edge: cutting corner x between the new
-    vertices before and after it, ``p`` keeps the rest when ``p.halfedge`` starts neither at x nor at the vertex
-    before it, and ``p.halfedge`` then starts at the vertex after x.
+    ``split_edge`` keeps each polygon's first corner (``p.halfedge``'s origin) and ``split_polygon`` leaves
+    ``p`` the part holding ``p.halfedge``, so cutting off b, then c, then a leaves ``p`` holding both ends of
+    every cut.
     """
-    around = {a: (c, b), b: (a, c), c: (b, a)}  # each corner's previous and next corner
-    start = ("v", a) if keeps_origin else ("m", _key(a, b))
-    cuts, left = [], [a, b, c]
-    while left:
-        x = next((x for x in left if start not in (("v", x), ("m", _key(around[x][0], x)))), left[0])
-        before, after = _key(around[x][0], x), _key(x, around[x][1])
-        cuts.append((before, after))
-        start = ("m", after)
-        left.remove(x)
-    return cuts
+    ab, bc, ca = _key(a, b), _key(b, c), _key(c, a)
+    return [(ab, bc), (bc, ca), (ca, ab)]
 
 
 JOBS = {"setup": job_setup, "ops": job_ops, "op": job_op, "subdivide": job_subdivide}

@@ -271,23 +271,24 @@ def split_polygon(uow: UnitOfWork, p: int, a: tuple[str, int], b: tuple[str, int
 # -- join_polygons ------------------------------------------------------------
 
 
-def check_join_polygons(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
-    """``(h, t, kept polygon, removed polygon)`` of `join_polygons`."""
-    h, t, a, b = _edge_ends(uow, e, polygons=True)
+def _two_polygons(uow: UnitOfWork, e: int, h: int, t: int, what: str) -> tuple[int, int]:
     p, q = uow.he(h)[POLYGON], uow.he(t)[POLYGON]
     if p is None or q is None:
         free = h if p is None else t
         raise _refuse(
-            f"edge {e} has no polygon on one side ({describe(uow, free)} is free): there is nothing to join",
+            f"edge {e} is on the boundary ({describe(uow, free)} is free): {what} needs a polygon on both sides",
             (("edge", e), ("halfedge", free)),
             "boundary",
         )
     if p == q:
-        raise _refuse(
-            f"both sides of edge {e} are polygon {p}: removing it would leave no polygon to join",
-            (("edge", e), ("polygon", p)),
-            "same-polygon",
-        )
+        raise _refuse(f"both sides of edge {e} are polygon {p}", (("edge", e), ("polygon", p)), "same-polygon")
+    return p, q
+
+
+def check_join_polygons(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
+    """``(h, t, kept polygon, removed polygon)`` of `join_polygons`."""
+    h, t, a, b = _edge_ends(uow, e, polygons=True)
+    p, q = _two_polygons(uow, e, h, t, "a join")
     if uow.he(h)[NEXT] == h and uow.he(t)[NEXT] == t:
         raise _refuse(
             f"polygons {p} and {q} are 1-gons on both sides of loop edge {e}: joining them leaves an empty polygon",
@@ -365,20 +366,6 @@ def poke_polygon(uow: UnitOfWork, p: int, position: tuple | None = None) -> int:
 
 
 # -- flip_edge ----------------------------------------------------------------
-
-
-def _two_polygons(uow: UnitOfWork, e: int, h: int, t: int, what: str) -> tuple[int, int]:
-    p, q = uow.he(h)[POLYGON], uow.he(t)[POLYGON]
-    if p is None or q is None:
-        free = h if p is None else t
-        raise _refuse(
-            f"edge {e} is on the boundary ({describe(uow, free)} is free): {what} needs a polygon on both sides",
-            (("edge", e), ("halfedge", free)),
-            "boundary",
-        )
-    if p == q:
-        raise _refuse(f"both sides of edge {e} are polygon {p}", (("edge", e), ("polygon", p)), "same-polygon")
-    return p, q
 
 
 def check_flip_edge(uow: UnitOfWork, e: int) -> tuple[int, int, int, int]:
