@@ -5,7 +5,7 @@ bounding a 1-gon, two parallel edges bounding a 2-gon and two triangles
 meeting at a single vertex — in one transaction, edits it in a second one,
 shows a failed transaction rolled back and a non-manifold edit refused
 without changing anything, applies Euler operators (a split wire edge, a
-flipped diagonal, a split self-loop) and a refused collapse, and prints a
+flipped diagonal, a poked 1-gon) and a refused collapse, and prints a
 short summary. It replaces an
 existing ``"demo"`` mesh, so it can be run any number of times.
 
@@ -177,12 +177,12 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
     with store.transaction():
         middle = mesh.split_edge(wire)  # a wire edge splits like any other
         diagonal = mesh.flip_edge(mesh.find_halfedge(centre, rim[2]).edge)
-        corner = mesh.split_edge(loop)  # the loop becomes two parallel edges, the 1-gon a 2-gon
+        inside = mesh.poke_polygon(monogon)  # the 1-gon becomes a triangle on its self-loop
     ends = sorted(v.id for v in diagonal.vertices())
     out(
         f"Euler operators in one transaction: vertex {middle.id} splits wire edge {wire.id}, "
         f"edge {diagonal.id} flipped to join vertices {ends[0]} and {ends[1]}, "
-        f"vertex {corner.id} splits the self-loop (polygon {monogon.id} is now a {monogon.degree}-gon)"
+        f"vertex {inside.id} pokes the 1-gon {monogon.id} (now a triangle on self-loop {loop.id})"
     )
     before = (mesh.counts(), mesh.revision)
     if mesh.can_collapse_edge(e1.halfedges()[0]):
