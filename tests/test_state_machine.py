@@ -5,9 +5,13 @@ and parallel edges included), add_polygon by vertices (1–5 corners,
 duplicates allowed, so many are refused) and by half-edges (a free loop
 followed with ``next``, a random chain of free half-edges, sometimes
 truncated, shuffled or with a taken half-edge mixed in), remove_polygon,
-remove_edge, remove_vertex, operations on stale handles, and opening,
-committing and rolling back (nested) transaction blocks — to a mesh in a real
-database, and the same operations' known effects to a plain in-memory model:
+remove_edge, remove_vertex, every Euler operator of SPEC §3.1 (below),
+operations on stale handles and malformed arguments, and opening, committing
+and rolling back (nested) transaction blocks — to a mesh in a real database,
+and the same operations' known effects to a plain in-memory model. A machine
+starts from an empty mesh with up to six vertices, or (most often) from one
+of `SHAPES` (a fan, a triangle strip, a quad grid, a tetrahedron, an
+octahedron), with or without positions. The model:
 
 * ``vertices``: ids; ``edges``: id -> (a, b, a→b half-edge, b→a half-edge);
   ``halfedges``: id -> (origin, target, edge); ``face``: half-edge -> polygon
@@ -28,6 +32,48 @@ database, and the same operations' known effects to a plain in-memory model:
   (values and positions included) as it was when the block began. Removed
   elements take their values with them, except that half-edges (and their
   corner values) outlive `remove_polygon`.
+* Euler operators, one rule each: split_edge (with and without
+  ``triangulate``, with and without a position), split_polygon (corners as
+  vertices, half-edges, one of each, or any live vertex or half-edge),
+  join_polygons, poke_polygon, flip_edge, collapse_edge, heal_edges,
+  fill_hole and triangulate_polygon. Arguments are mostly candidates that
+  may succeed (an edge between two triangles for a flip, the two edges of a
+  degree-2 vertex for a heal, a free half-edge for a fill, non-adjacent
+  corners of a polygon of degree ≥ 4 for a cut, …), sometimes any live
+  element. The model applies each operator's documented effect (`Model`'s
+  ``split_edge`` … ``triangulate_polygon``): the id rules (``e`` keeps its
+  id and its half-edge, the survivor is the polygon left of
+  ``e.halfedge``, ``p`` keeps the part holding ``p.halfedge``, the fan
+  starts at ``p.halfedge``, ``e1`` survives, the target survives, …), the
+  exact cycles, and SPEC §3.1's property rules for the machine's four
+  properties — vertex ``t``: the mean of the ends or corners (float64);
+  corner ``uv``: kept where a corner keeps its vertex and polygon, copied
+  from the corner a new one was split from, the mean of the neighbouring
+  corners at a new vertex (unset unless all have one); edge ``w``:
+  split_edge's new edge copies ``e``, other new edges take the default;
+  polygon ``label``: new polygons copy the one they came from, join keeps
+  the survivor's — and positions (the given one, else the midpoint or
+  centroid when all corners have one, checked against the exact mean to
+  rounding and required finite; the target's after a collapse). Elements an
+  operator makes get placeholder ids in the model; `MeshMachine._done`
+  finds the store's ids by walking each new polygon from a half-edge the
+  model knows, and they must be ids never handed out.
+* For every operator the predicate ``mesh.can_<op>(...)`` is asked first: it
+  must write nothing and must equal whether the operator then succeeds.
+  Where the model decides the outcome on its own it must agree too, with the
+  error type and `EulerError.reason`: fill_hole (the half-edge is free),
+  flip_edge (both sides triangles of two polygons, third corners different
+  and not joined), heal_edges (two different non-loop edges through a vertex
+  of degree 2; the policy for the healed edge), split_polygon (corners of
+  ``p``, not the same, not adjacent, a vertex that is two corners is
+  `InvalidInputError` from both; the policy), join_polygons (polygons on
+  both sides, different, not two 1-gons), poke_polygon and
+  triangulate_polygon (the policy only), split_edge (a loop where parallel
+  edges are forbidden; with ``triangulate``, a cut that the policy forbids
+  refuses the whole operator, which the plain predicate cannot see). For
+  collapse_edge the model knows only the loop, same-polygon and 1-/2-gon
+  refusals; the rest of the generalised link condition is the store's, and
+  its answer must match the outcome.
 
 After every step: ``mesh.check() == []``; the stored rows of the mesh equal the
 model (vertices, edges, every half-edge's origin, twin, edge and polygon);
@@ -47,6 +93,14 @@ rolled-back block's ids may come again: those elements never existed).
 exhaustively (every closed chain of up to four free half-edges) on a few
 small meshes with self-loops, fans and digons.
 
+The Euler rules' model is exact where SPEC is silent in two places, which
+it takes from the store: a new edge's ``halfedge`` is the one from its first
+end to its second (the cut a→b, a spoke from the new vertex), and after one
+operator cuts a polygon twice (split_edge with ``triangulate`` when both
+sides are one triangle) each part's ``halfedge`` is its first half-edge.
+Property means are taken as the store takes them (``sum(values) / n`` in
+the sources' order).
+
 A failure is reported without shrinking (replaying against a database is
 slow); set ``HESTORE_SHRINK=1`` for a minimal failing sequence.
 """
@@ -54,9 +108,11 @@ slow); set ``HESTORE_SHRINK=1`` for a minimal failing sequence.
 from __future__ import annotations
 
 import copy
+import fractions
 import itertools
 import math
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -76,11 +132,13 @@ import hestore
 from hestore import Edge, HalfEdge, Polygon, Vertex
 from hestore.errors import (
     ElementNotFoundError,
+    EulerError,
     HalfEdgeNotFreeError,
     InvalidInputError,
     NonManifoldError,
     NotAChainError,
     PolicyError,
+    TopologyError,
     VertexNotFreeError,
 )
 from hestore.schema import VALUE_TABLES
@@ -88,6 +146,7 @@ from hestore.schema import VALUE_TABLES
 from helpers import dump
 
 MAX_VERTICES = 12
+MAX_GROWN = MAX_VERTICES + 4  # split_edge and poke_polygon add vertices up to here
 MAX_DEPTH = 3
 
 # Positions of the columns in `helpers.dump` rows (table column order).
@@ -101,6 +160,14 @@ PROPS = [
     ("edge", "w", "int64", (), 0),
     ("polygon", "label", "str", (), ""),
 ]
+#: Small meshes a machine may start from: (vertices, polygons by vertex index).
+SHAPES = {
+    "fan": (6, [(0, i, i % 5 + 1) for i in range(1, 6)]),
+    "strip": (8, [t for i in range(3) for t in ((i, i + 1, i + 5), (i, i + 5, i + 4))]),
+    "quads": (9, [(i, i + 1, i + 4, i + 3) for i in (0, 1, 3, 4)]),
+    "tetrahedron": (4, [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]),
+    "octahedron": (6, [(0, i, i % 4 + 1) for i in range(1, 5)] + [(5, i % 4 + 1, i) for i in range(1, 5)]),
+}
 PROP_KIND = {name: kind for kind, name, _d, _s, _x in PROPS}
 PROP_DEFAULT = {name: default for _k, name, _d, _s, default in PROPS}
 _FLOATS = st.floats(allow_nan=True, allow_infinity=True, width=64)
@@ -136,6 +203,14 @@ class Rollback(Exception):
     """Raised into a block to roll it back."""
 
 
+class Refusal(Exception):
+    """The model's prediction that an operator refuses: the error class(es) and, for an `EulerError`, the reason."""
+
+    def __init__(self, errors, reason: str | None = None) -> None:
+        super().__init__(errors, reason)
+        self.errors, self.reason = errors, reason
+
+
 def rotations_equal(a, b) -> bool:
     a, b = list(a), list(b)
     return len(a) == len(b) and (not a or any(a[i:] + a[:i] == b for i in range(len(a))))
@@ -157,6 +232,7 @@ class Model:
         # property values set (id -> value; unset: absent) and vertex positions
         self.values: dict[str, dict[int, object]] = {name: {} for _k, name, _d, _s, _x in PROPS}
         self.positions: dict[int, tuple | None] = {}
+        self.allow_loops = self.allow_multi = True
 
     # -- queries ------------------------------------------------------------
 
@@ -232,6 +308,8 @@ class Model:
     # -- effects -------------------------------------------------------------
 
     def fresh(self, kind: str, i: int) -> None:
+        if i < 0:
+            return  # a placeholder (see `rename`)
         assert i not in self.used[kind], f"{kind} id {i} handed out again (ids are never reused)"
         self.used[kind].add(i)
 
@@ -283,6 +361,382 @@ class Model:
         del self.positions[v]
         self.removed["vertex"].add(v)
 
+    # -- Euler operators (SPEC §3.1) --------------------------------------------
+    #
+    # Each applies an operator's documented effect to this model and returns
+    # what the operator returns, or raises `Refusal` (before changing
+    # anything) where the model can tell that the operator must refuse.
+    # Elements an operator makes get placeholder ids (negative: -1, -2, … per
+    # kind, in no particular order); `MeshMachine._resolve` finds the ids the
+    # store gave them and `rename` puts those in. ``phe`` maps polygons to
+    # their ``halfedge`` as stored (which half-edge a cut, a poke or a fan
+    # starts from); ``nxt`` maps free half-edges to their stored ``next``.
+
+    def twin(self, h: int) -> int:
+        _a, _b, x, y = self.edges[self.halfedges[h][2]]
+        return y if h == x else x
+
+    def origin(self, h: int) -> int:
+        return self.halfedges[h][0]
+
+    def step(self, h: int, k: int = 1) -> int:
+        """The half-edge ``k`` places after ``h`` in its polygon."""
+        loop = self.polygons[self.face[h]]
+        return loop[(loop.index(h) + k) % len(loop)]
+
+    def rotated(self, p: int, start: int) -> list[int]:
+        loop = self.polygons[p]
+        i = loop.index(start)
+        return loop[i:] + loop[:i]
+
+    def value(self, name: str, i: int):
+        return self.values[name].get(i, PROP_DEFAULT[name])
+
+    def derive(self, name: str, plan) -> None:
+        """SPEC §3.1's property rules: ``plan`` holds ``(target, how, sources)``, all sources read first.
+
+        ``copy``: the first source's value (its default where unset);
+        ``mean``: the mean for float64 (where every source has a value), the
+        first source's otherwise (a new vertex); ``corner``: the mean for
+        float64, the default otherwise (a new corner). Means are taken as the
+        store takes them (``sum(values) / n``, in the sources' order).
+        """
+        is_float = name in ("t", "uv")
+        out = []
+        for target, how, sources in plan:
+            found = [self.value(name, s) for s in sources]
+            if how == "copy" or (how == "mean" and not is_float):
+                value = found[0]
+            elif not is_float or any(x is None for x in found):
+                value = None
+            elif isinstance(found[0], tuple):
+                value = tuple(sum(x[k] for x in found) / len(found) for k in range(len(found[0])))
+            else:
+                value = sum(found) / len(found)
+            out.append((target, value))
+        for target, value in out:
+            if value is None:
+                self.values[name].pop(target, None)
+            else:
+                self.values[name][target] = value
+
+    def mean_position(self, vs) -> tuple | None:
+        """The mean of the vertices' positions (one per entry), None when one has none."""
+        xyz = [self.positions[v] for v in vs]
+        if any(p is None for p in xyz):
+            return None
+        return tuple(sum(p[k] for p in xyz) / len(xyz) for k in range(3))
+
+    def check_policy(self, a: int, b: int, ignore=()) -> None:
+        """Refuse (`PolicyError`) a new edge a–b that would be a loop or a parallel edge the mesh forbids."""
+        if a == b and not self.allow_loops:
+            raise Refusal(PolicyError)
+        if not self.allow_multi and any(
+            frozenset((x, y)) == frozenset((a, b)) for e, (x, y, _h, _t) in self.edges.items() if e not in ignore
+        ):
+            raise Refusal(PolicyError)
+
+    def set_origin(self, h: int, v: int) -> None:
+        """Move the origin of ``h`` (and so the target of its twin) to ``v``."""
+        _o, target, e = self.halfedges[h]
+        t = self.twin(h)
+        self.halfedges[h] = (v, target, e)
+        self.halfedges[t] = (self.halfedges[t][0], v, e)
+        _a, _b, x, y = self.edges[e]
+        self.edges[e] = (self.halfedges[x][0], self.halfedges[y][0], x, y)
+
+    def place(self, p: int, loop: list[int]) -> None:
+        self.polygons[p] = list(loop)
+        for h in loop:
+            self.face[h] = p
+
+    def drop_polygon(self, p: int) -> None:
+        del self.polygons[p]
+        self.values["label"].pop(p, None)
+        self.removed["polygon"].add(p)
+
+    def drop_edge(self, e: int) -> None:
+        """Remove an edge whose half-edges are in no polygon's loop any more."""
+        _a, _b, h, t = self.edges.pop(e)
+        for x in (h, t):
+            del self.halfedges[x]
+            del self.face[x]
+            self.values["uv"].pop(x, None)
+            self.removed["halfedge"].add(x)
+        self.values["w"].pop(e, None)
+        self.removed["edge"].add(e)
+
+    def drop_vertex(self, v: int) -> None:
+        self.vertices.remove(v)
+        self.values["t"].pop(v, None)
+        del self.positions[v]
+        self.removed["vertex"].add(v)
+
+    def cut(self, ha: int, hb: int, new: tuple[int, int, int, int], phe: dict, keep_first: bool | None = None) -> int:
+        """Cut the polygon of corners ``ha``, ``hb`` by a new edge between their origins (`split_polygon`).
+
+        ``new`` = (edge, a→b half-edge, b→a half-edge, polygon). The part
+        ``ha … prev(hb)`` is closed by b→a, the part ``hb … prev(ha)`` by
+        a→b; the polygon keeps the part holding its ``halfedge`` (or the
+        first, ``keep_first``), the other is the new polygon with its values.
+        The new a→b corner copies ``ha``'s value, b→a ``hb``'s. Afterwards
+        each part's ``halfedge`` is its first half-edge (what the store does;
+        it matters only where one operator cuts one polygon twice).
+        """
+        e, x, y, q = new
+        p = self.face[ha]
+        loop = self.rotated(p, ha)
+        first, second = loop[: loop.index(hb)], loop[loop.index(hb):]
+        self.add_edge(e, self.origin(ha), self.origin(hb), x, y)
+        if keep_first is None:
+            keep_first = phe[p] in first
+        kept, moved = (first + [y], second + [x]) if keep_first else (second + [x], first + [y])
+        self.place(p, kept)
+        self.place(q, moved)
+        phe[p], phe[q] = kept[0], moved[0]
+        self.derive("label", [(q, "copy", (p,))])
+        self.derive("uv", [(x, "copy", (ha,)), (y, "copy", (hb,))])
+        return q
+
+    def split_edge(self, e: int, position, triangulate: bool, phe: dict, nxt: dict) -> int:
+        a, b, h, t = self.edges[e]
+        if a == b and not self.allow_multi:
+            raise Refusal(PolicyError)
+        triangles = [x for x in (h, t) if triangulate and self.face[x] is not None
+                     and len(self.polygons[self.face[x]]) == 3]
+        after = {x: self.step(x) if self.face[x] is not None else nxt[x] for x in (h, t)}
+        v, e2, h2, t2 = -1, -1, -1, -2
+        self.vertices.add(v)
+        self.positions[v] = tuple(position) if position is not None else self.mean_position((a, b))
+        self.derive("t", [(v, "mean", (a, b))])
+        # e (h: a→v, t: v→a) keeps its id; the new edge e2 runs v→b
+        self.set_origin(t, v)
+        self.add_edge(e2, v, b, h2, t2)
+        if self.face[h] is not None:
+            loop = self.polygons[self.face[h]]
+            loop.insert(loop.index(h) + 1, h2)
+            self.face[h2] = self.face[h]
+        if self.face[t] is not None:
+            loop = self.polygons[self.face[t]]
+            loop.insert(loop.index(t), t2)
+            self.face[t2] = self.face[t]
+        self.derive("w", [(e2, "copy", (e,))])
+        # t2 is the corner at b where t was; h2 and t are the new corners at v
+        self.derive("uv", [(t2, "copy", (t,)), (h2, "corner", (h, after[h])), (t, "corner", (t, after[t]))])
+        for n, x in enumerate(triangles):
+            # the triangle, now a quad, is cut from v to the corner across from it
+            corner = h2 if x == h else t
+            opposite = self.step(corner, 2)
+            self.check_policy(v, self.origin(opposite))
+            self.cut(corner, opposite, (-2 - n, -3 - 2 * n, -4 - 2 * n, -1 - n), phe)
+        return v
+
+    def split_polygon(self, p: int, a: tuple[str, int], b: tuple[str, int], phe: dict) -> int:
+        """``a``, ``b``: ("vertex" or "halfedge", id) of live elements."""
+        loop = self.polygons[p]
+
+        def corner(kind, x):
+            if kind == "halfedge":
+                if x not in loop:
+                    raise Refusal(EulerError, "not-corner")
+                return x
+            found = [h for h in loop if self.origin(h) == x]
+            if not found:
+                raise Refusal(EulerError, "not-corner")
+            if len(found) > 1:
+                raise Refusal(InvalidInputError)
+            return found[0]
+
+        ha, hb = corner(*a), corner(*b)
+        if ha == hb:
+            raise Refusal(EulerError, "same-corner")
+        if self.step(ha) == hb or self.step(hb) == ha:
+            raise Refusal(EulerError, "adjacent-corners")
+        self.check_policy(self.origin(ha), self.origin(hb))
+        self.cut(ha, hb, (-1, -1, -2, -1), phe)
+        return -1
+
+    def join_polygons(self, e: int) -> int:
+        _a, _b, h, t = self.edges[e]
+        p, q = self.face[h], self.face[t]
+        if p is None or q is None:
+            raise Refusal(EulerError, "boundary")
+        if p == q:
+            raise Refusal(EulerError, "same-polygon")
+        if len(self.polygons[p]) + len(self.polygons[q]) == 2:
+            raise Refusal(EulerError, "degenerate")
+        merged = self.rotated(p, h)[1:] + self.rotated(q, t)[1:]
+        self.face[h] = self.face[t] = None
+        self.drop_polygon(q)
+        self.place(p, merged)
+        self.drop_edge(e)
+        return p
+
+    def poke_polygon(self, p: int, position, phe: dict) -> int:
+        loop = self.rotated(p, phe[p])
+        corners = [self.origin(h) for h in loop]
+        if not self.allow_multi and len(set(corners)) < len(corners):
+            raise Refusal(PolicyError)
+        k, c = len(loop), -1
+        self.vertices.add(c)
+        self.positions[c] = tuple(position) if position is not None else self.mean_position(corners)
+        self.derive("t", [(c, "mean", corners)])
+        down = [-1 - 2 * i for i in range(k)]  # c → corner i
+        up = [-2 - 2 * i for i in range(k)]  # corner i → c
+        for i in range(k):
+            self.add_edge(-1 - i, c, corners[i], down[i], up[i])
+        triangles = [p] + [-i for i in range(1, k)]
+        for i, h in enumerate(loop):
+            self.place(triangles[i], [h, up[(i + 1) % k], down[i]])
+        self.derive("label", [(q, "copy", (p,)) for q in triangles[1:]])
+        self.derive("uv", [(down[i], "corner", loop) for i in range(k)]
+                    + [(up[(i + 1) % k], "copy", (loop[(i + 1) % k],)) for i in range(k)])
+        return c
+
+    def flip_edge(self, e: int) -> int:
+        _a, _b, h, t = self.edges[e]
+        p, q = self.face[h], self.face[t]
+        if p is None or q is None:
+            raise Refusal(EulerError, "boundary")
+        if p == q:
+            raise Refusal(EulerError, "same-polygon")
+        if len(self.polygons[p]) != 3 or len(self.polygons[q]) != 3:
+            raise Refusal(EulerError, "not-triangle")
+        h1, h2, t1, t2 = self.step(h), self.step(h, 2), self.step(t), self.step(t, 2)
+        c, d = self.origin(h2), self.origin(t2)
+        if c == d:
+            raise Refusal(EulerError, "degenerate")
+        if self.joined(c, d):
+            raise Refusal(EulerError, "duplicate-edge")
+        # h: a→b in (a, b, c), t in (b, a, d); now h: d→c in (d, c, a), t: c→d in (c, d, b)
+        self.set_origin(h, d)
+        self.set_origin(t, c)
+        self.place(p, [h, h2, t1])
+        self.place(q, [t, t2, h1])
+        self.derive("uv", [(t1, "copy", (h,)), (h1, "copy", (t,)), (h, "copy", (t2,)), (t, "copy", (h2,))])
+        return e
+
+    def check_collapse_edge(self, h: int) -> None:
+        """The refusals of `collapse_edge` the model knows; the rest of the link condition is the store's."""
+        u, w, _e = self.halfedges[h]
+        if u == w:
+            raise Refusal(EulerError, "loop")
+        p, q = self.face[h], self.face[self.twin(h)]
+        if p is not None and p == q:
+            raise Refusal(EulerError, "same-polygon")
+        if any(x is not None and len(self.polygons[x]) < 3 for x in (p, q)):
+            raise Refusal(EulerError, "degenerate")
+
+    def collapse_edge(self, h: int) -> int:
+        """Merge ``h``'s origin u into its target w (after the store said yes)."""
+        self.check_collapse_edge(h)
+        u, w, e = self.halfedges[h]
+        t = self.twin(h)
+        dissolve = []  # per triangle beside e: (the edge at w, which stays; the edge at u, which goes)
+        for x in (h, t):
+            if self.face[x] is not None and len(self.polygons[self.face[x]]) == 3:
+                x1, x2 = self.step(x), self.step(x, 2)
+                dissolve.append((x1, x2) if x == h else (x2, x1))
+        for x in self.outgoing(u):
+            if x not in (h, t):
+                self.set_origin(x, w)
+        for x in (h, t):
+            if self.face[x] is not None:
+                self.polygons[self.face[x]].remove(x)
+                self.face[x] = None
+        self.drop_edge(e)
+        self.drop_vertex(u)
+        for keep, drop in dissolve:
+            # the 2-gon (keep, drop) goes: keep takes the place of drop's twin in its polygon
+            outer = self.twin(drop)
+            self.drop_polygon(self.face[keep])
+            q = self.face[outer]
+            if q is not None:
+                loop = self.polygons[q]
+                loop[loop.index(outer)] = keep
+            self.face[keep] = q
+            self.face[drop] = self.face[outer] = None
+            self.derive("uv", [(keep, "copy", (outer,))])
+            self.drop_edge(self.halfedges[drop][2])
+        return w
+
+    def heal_edges(self, e1: int, e2: int) -> int:
+        if e1 == e2:
+            raise Refusal(EulerError, "same-edge")
+        for e in (e1, e2):
+            if self.edges[e][0] == self.edges[e][1]:
+                raise Refusal(EulerError, "loop")
+        (a1, b1, h1, t1), (a2, b2, h2, t2) = self.edges[e1], self.edges[e2]
+        shared = [v for v in (b1, a1) if v in (a2, b2)]
+        if not shared:
+            raise Refusal(EulerError, "not-adjacent")
+        # the vertex the edges meet at (e1's target first, where they meet at both ends)
+        mine = {h1, t1, h2, t2}
+        v = next((v for v in shared if set(self.outgoing(v)) <= mine), None)
+        if v is None:
+            raise Refusal(EulerError, "degree")
+        x1 = h1 if self.halfedges[h1][1] == v else t1  # arrives at v
+        x2 = h2 if self.halfedges[h2][0] == v else t2  # leaves v
+        y1, y2 = self.twin(x1), self.twin(x2)
+        a, b = self.origin(x1), self.halfedges[x2][1]
+        self.check_policy(a, b, ignore=(e1, e2))
+        for x in (x2, y2):
+            if self.face[x] is not None:
+                self.polygons[self.face[x]].remove(x)
+                self.face[x] = None
+        self.derive("uv", [(y1, "copy", (y2,))])  # y1 is now the corner at b where y2 was
+        self.set_origin(y1, b)
+        self.drop_edge(e2)
+        self.drop_vertex(v)
+        return e1
+
+    def fill_hole(self, h: int, loop: list[int]) -> int:
+        """``loop``: the stored ``next`` cycle of ``h``."""
+        if self.face[h] is not None:
+            raise Refusal(HalfEdgeNotFreeError)
+        self.place(-1, loop)
+        return -1
+
+    def triangulate_polygon(self, p: int, phe: dict) -> list[int]:
+        loop = self.rotated(p, phe[p])
+        if len(loop) <= 3:
+            return [p]
+        corners = [self.origin(h) for h in loop]
+        seen = set()
+        for v in corners[2:-1]:
+            self.check_policy(corners[0], v)
+            if v in seen and not self.allow_multi:
+                raise Refusal(PolicyError)
+            seen.add(v)
+        triangles, ha = [p], loop[0]
+        for n, hb in enumerate(loop[2:-1]):
+            x = -1 - 2 * n
+            triangles.append(self.cut(ha, hb, (-1 - n, x, x - 1, -1 - n), phe, keep_first=True))
+            ha = x
+        return triangles
+
+    def rename(self, ids: dict[str, dict[int, int]]) -> None:
+        """Put the store's ids in place of the placeholders (each must be an id never handed out)."""
+        for kind, found in ids.items():
+            for placeholder, i in found.items():
+                assert placeholder < 0
+                self.fresh(kind, i)
+        V, E, H, P = (ids[k] for k in ("vertex", "edge", "halfedge", "polygon"))
+
+        def f(m, i):
+            return i if i is None else m.get(i, i)
+
+        self.vertices = {f(V, v) for v in self.vertices}
+        self.positions = {f(V, v): x for v, x in self.positions.items()}
+        self.edges = {f(E, e): (f(V, a), f(V, b), f(H, h), f(H, t)) for e, (a, b, h, t) in self.edges.items()}
+        self.halfedges = {f(H, h): (f(V, a), f(V, b), f(E, e)) for h, (a, b, e) in self.halfedges.items()}
+        self.face = {f(H, h): f(P, p) for h, p in self.face.items()}
+        self.polygons = {f(P, p): [f(H, h) for h in loop] for p, loop in self.polygons.items()}
+        for name, m in (("t", V), ("uv", H), ("w", E), ("label", P)):
+            self.values[name] = {f(m, i): x for i, x in self.values[name].items()}
+        for kind in ("vertex", "edge", "halfedge", "polygon"):
+            assert all(i >= 0 for i in self.live(kind)), f"a new {kind} was not found in the store"
+
 
 class Frame:
     """An open block: the model as it began, and whether it changed the mesh."""
@@ -308,16 +762,19 @@ class MeshMachine(RuleBasedStateMachine):
         self.committed_revision = 0
         self.committed_dump = None
         self.last_dump = None
+        self.current_dump = None  # a dump a rule took after its last change (the invariant needs no other)
         self.prop_ids: dict[str, int] = {}
         self.verified: dict[str, tuple] = {}  # property name -> what it was last checked against
 
     # -- set-up and tear-down -------------------------------------------------
 
-    @initialize(loops=st.booleans(), multi=st.booleans(), strict=st.integers(0, 3), start=st.integers(0, 6))
-    def make_mesh(self, loops, multi, strict, start):
+    @initialize(loops=st.booleans(), multi=st.booleans(), strict=st.integers(0, 3), start=st.integers(0, 6),
+                start_shape=st.sampled_from([None, None, None, *SHAPES]), positioned=st.booleans())
+    def make_mesh(self, loops, multi, strict, start, start_shape, positioned):
         # mostly permissive meshes, sometimes ones that forbid loops / parallel edges
         self.allow_loops = loops or strict > 0
         self.allow_multi = multi or strict > 0
+        self.model.allow_loops, self.model.allow_multi = self.allow_loops, self.allow_multi
         self.store = hestore.open(self.url)
         self.name = f"sm{next(self.counter)}"
         self.mesh = self.store.create_mesh(self.name, allow_loops=self.allow_loops,
@@ -327,8 +784,25 @@ class MeshMachine(RuleBasedStateMachine):
                 self.prop_ids[name] = self.mesh.add_property(kind, name, dtype, shape=shape, default=default).id
             for _ in range(start):
                 self.model.add_vertex(self.mesh.add_vertex().id)
+            if start_shape is not None:
+                self._make_shape(start_shape, positioned)
         self.committed_revision = 1
         self.last_dump = self.committed_dump = dump(self.store)
+
+    def _make_shape(self, shape: str, positioned: bool) -> None:
+        """Add one of `SHAPES` (a start for the Euler operators), and read it into the model."""
+        n, polygons = SHAPES[shape]
+        xyz = [(float(i % 3), float(i // 3), float(i % 2)) if positioned else None for i in range(n)]
+        vs = [self.mesh.add_vertex(x) for x in xyz]
+        for v, x in zip(vs, xyz):
+            self.model.add_vertex(v.id, x)
+        for corners in polygons:
+            self.mesh.add_polygon([vs[i] for i in corners])
+        for e in self.mesh.edges():
+            h, t = e.halfedges()
+            self.model.add_edge(e.id, h.origin.id, t.origin.id, h.id, t.id)
+        for p in self.mesh.polygons():
+            self.model.add_polygon(p.id, [h.id for h in p.halfedges()])
 
     def teardown(self):
         if self.store is None:
@@ -367,6 +841,7 @@ class MeshMachine(RuleBasedStateMachine):
 
     def changed(self) -> None:
         """A mutating call succeeded."""
+        self.current_dump = None
         if self.stack:
             self.stack[-1].changed = True
         else:
@@ -378,7 +853,8 @@ class MeshMachine(RuleBasedStateMachine):
         with pytest.raises(errors) as info:
             call()
         event(f"refused: {type(info.value).__name__}")
-        assert dump(self.store) == before, f"refused call ({info.value!r}) changed the database"
+        self.current_dump = dump(self.store)
+        assert self.current_dump == before, f"refused call ({info.value!r}) changed the database"
         assert self.mesh.revision == self.expected_revision
         return info.value
 
@@ -694,6 +1170,321 @@ class MeshMachine(RuleBasedStateMachine):
         self.model.remove_vertex(v)
         self.changed()
 
+    # -- Euler operators ------------------------------------------------------------
+
+    def _simulate(self, apply):
+        """``apply(model)`` on a copy of the model: ``(copy, result, None)``, or ``(None, None, Refusal)``."""
+        sim = copy.deepcopy(self.model)
+        try:
+            return sim, apply(sim), None
+        except Refusal as refusal:
+            return None, None, refusal
+
+    def _ask(self, op: str, *args, expected: bool | None) -> bool:
+        """``mesh.can_<op>(*args)``: it writes nothing, and agrees with the model where the model knows."""
+        can = getattr(self.mesh, f"can_{op}")(*args)
+        assert can is True or can is False
+        assert dump(self.store) == self.last_dump, f"can_{op} changed the database"
+        if expected is not None:
+            assert can == expected, f"can_{op}{args} is {can}, the model says {expected}"
+        return can
+
+    def _refuse(self, op: str, call, refusal) -> None:
+        """``call()`` raises what the model predicts (any `TopologyError` where it cannot tell)."""
+        error = self.refused(call, refusal.errors if refusal is not None else TopologyError)
+        if refusal is not None and refusal.reason is not None:
+            assert error.reason == refusal.reason, f"{op} refused for {error.reason!r}, expected {refusal.reason!r}"
+        event(f"{op}: refused ({getattr(error, 'reason', '') or type(error).__name__})")
+
+    def _halfedge_rows(self, d=None) -> dict[int, tuple]:
+        """Half-edge rows of the mesh by id (by default as they were at the last step)."""
+        d = self.last_dump if d is None else d
+        return {r[HE_ID]: r for r in d["halfedges"] if r[0] == self.mesh.id}
+
+    def _polygon_halfedges(self) -> dict[int, int]:
+        """Each polygon's ``halfedge`` as stored at the last step."""
+        return {r[1]: r[2] for r in self.last_dump["polygons"] if r[0] == self.mesh.id}
+
+    def _done(self, op: str, sim: Model, seed=None) -> None:
+        """The operator succeeded: find the store's ids for the model's placeholders, and take the model."""
+        self.changed()
+        event(op)
+        d = self.current_dump = dump(self.store)
+        rows = self._halfedge_rows(d)
+        ids = {kind: {} for kind in ("vertex", "edge", "halfedge", "polygon")}
+        for kind, found in (seed or {}).items():
+            ids[kind].update(found)
+
+        def bind(kind, placeholder, i):
+            if placeholder >= 0:
+                assert placeholder == i, f"{op}: expected {kind} {placeholder} where the store has {i}"
+            else:
+                assert ids[kind].setdefault(placeholder, i) == i, f"{op}: {kind} {placeholder} found twice"
+
+        def known(h):
+            return h if h >= 0 else ids["halfedge"].get(h)
+
+        def twins():
+            """Bind the twins of the new half-edges found so far; whether any was new."""
+            before = len(ids["halfedge"])
+            for _e, (_a, _b, h, t) in sim.edges.items():
+                for x, y in ((h, t), (t, h)):
+                    if y < 0 and known(x) is not None:
+                        bind("halfedge", y, rows[known(x)][HE_TWIN])
+            return len(ids["halfedge"]) > before
+
+        # walk every polygon that holds a placeholder from a half-edge whose id is known
+        todo = [p for p, loop in sim.polygons.items() if p < 0 or min(loop) < 0]
+        while todo:
+            found = [(p, i) for p in todo for i, h in enumerate(sim.polygons[p]) if known(h) is not None]
+            if not found:
+                assert twins(), (f"{op}: no known half-edge in the new polygons "
+                                 f"{ {p: sim.polygons[p] for p in todo} } (found {ids})")
+                continue
+            p, start = found[0]
+            todo.remove(p)
+            loop = sim.polygons[p]
+            want = loop[start:] + loop[:start]
+            got = [known(want[0])]
+            while rows[got[-1]][HE_NEXT] != got[0] and len(got) <= len(rows):
+                got.append(rows[got[-1]][HE_NEXT])
+            assert len(got) == len(want), f"{op}: polygon {p} should be {want}, the store has {got}"
+            for h, g in zip(want, got):
+                bind("halfedge", h, g)
+            bind("polygon", p, rows[got[0]][HE_POLYGON])
+        # the twins, edges and vertices of the new half-edges
+        twins()
+        for e, (a, b, h, t) in sim.edges.items():
+            if min(e, h, t) >= 0:
+                continue
+            assert known(h) is not None, f"{op}: the new half-edges of edge {e} were not found"
+            bind("edge", e, rows[known(h)][HE_EDGE])
+            bind("vertex", a, rows[known(h)][HE_ORIGIN])
+            bind("vertex", b, rows[known(t)][HE_ORIGIN])
+        sim.rename(ids)
+        self.model = sim
+
+    def _check_new_position(self, sim: Model, v: Vertex, given, corners) -> None:
+        """The new vertex (placeholder -1) is at ``given``, else at the mean of the corners when all have one.
+
+        The mean is checked against the exact one, to rounding (the model's
+        sum-then-divide may overflow where the store must not: positions are
+        finite); the model then takes the stored one.
+        """
+        got = v.position
+        if given is not None or sim.positions[-1] is None:
+            assert got == sim.positions[-1], f"new vertex at {got}, expected {sim.positions[-1]}"
+            return
+        xyz = [self.model.positions[c] for c in corners]
+        assert got is not None and all(math.isfinite(x) for x in got), (
+            f"the new vertex is at {got}, not at the mean of the finite positions {xyz}")
+        for k in range(3):
+            exact = float(sum(fractions.Fraction(p[k]) for p in xyz) / len(xyz))
+            slack = 4 * len(xyz) * sys.float_info.epsilon * max(abs(p[k]) for p in xyz) + 1e-300
+            assert abs(got[k] - exact) <= slack, f"the new vertex is at {got}, not at the mean of {xyz}"
+        sim.positions[-1] = got
+
+    @precondition(lambda self: self.model.edges and len(self.model.vertices) < MAX_GROWN)
+    @rule(data=st.data(), triangulate=st.booleans(), position=st.none() | st.none() | POSITIONS)
+    def split_edge(self, data, triangulate, position):
+        m = self.model
+        beside = sorted(e for e, (_a, _b, h, t) in m.edges.items()
+                        if any(m.face[x] is not None and len(m.polygons[m.face[x]]) == 3 for x in (h, t)))
+        some = beside if triangulate and beside and data.draw(st.integers(0, 3), label="beside") else sorted(m.edges)
+        e = data.draw(st.sampled_from(some), label="edge")
+        a, b, h, t = m.edges[e]
+        rows = self._halfedge_rows()
+        nxt = {x: rows[x][HE_NEXT] for x in (h, t)}
+        # the predicate answers for the plain split; the operator may still refuse its triangulation
+        plain = self._simulate(lambda s: s.split_edge(e, position, False, {}, nxt))[2]
+        sim, _v, refusal = self._simulate(lambda s: s.split_edge(e, position, triangulate, self._polygon_halfedges(),
+                                                                  nxt))
+        E = self.E(e)
+        self._ask("split_edge", E, expected=plain is None)
+        call = lambda: self.mesh.split_edge(E, position, triangulate=triangulate)  # noqa: E731
+        if refusal is not None:
+            self._refuse("split_edge", call, refusal)
+            return
+        v = call()
+        assert v.id not in m.used["vertex"]
+        self._check_new_position(sim, v, position, (a, b))
+        # e keeps its id and its half-edge; the new half-edges are found in the polygons beside e, or
+        # (a wire edge) the new v→b one follows e.halfedge, now a→v
+        seed = {"vertex": {-1: v.id}}
+        if m.face[h] is None and m.face[t] is None:
+            seed["halfedge"] = {-1: self.H(h).next.id}
+        self._done(f"split_edge{' (triangulate)' if triangulate else ''}", sim, seed)
+
+    @precondition(lambda self: self.model.polygons)
+    @rule(data=st.data(), how=st.sampled_from(["vertices", "halfedges", "halfedges", "mixed", "any"]))
+    def split_polygon(self, data, how):
+        m = self.model
+        big = sorted(p for p, loop in m.polygons.items() if len(loop) > 3)
+        some = big if big and data.draw(st.integers(0, 3), label="big") else sorted(m.polygons)
+        p = data.draw(st.sampled_from(some), label="polygon")
+        loop = m.polygons[p]
+        i = data.draw(st.integers(0, len(loop) - 1), label="i")
+        j = (i + data.draw(st.integers(2, max(2, len(loop) - 2)), label="j")) % len(loop)  # mostly not adjacent
+        args = []
+        for k, h in enumerate((loop[i], loop[j])):
+            if how == "any":  # any live vertex or half-edge (mostly refused)
+                kind = data.draw(st.sampled_from(["vertex", "halfedge"]), label="kind")
+                args.append((kind, data.draw(st.sampled_from(m.live(kind)), label="corner")))
+            elif how == "vertices" or (how == "mixed" and k == 0):
+                args.append(("vertex", m.origin(h)))
+            else:
+                args.append(("halfedge", h))
+        handles = [self.V(x) if kind == "vertex" else self.H(x) for kind, x in args]
+        phe = self._polygon_halfedges()
+        sim, _q, refusal = self._simulate(lambda s: s.split_polygon(p, *args, phe))
+        call = lambda: self.mesh.split_polygon(self.P(p), *handles)  # noqa: E731
+        if refusal is not None and refusal.errors is InvalidInputError:
+            # a vertex that is more than one corner of p: neither can tell which
+            self.refused(lambda: self.mesh.can_split_polygon(self.P(p), *handles), InvalidInputError)
+            self._refuse("split_polygon", call, refusal)
+            return
+        if not self._ask("split_polygon", self.P(p), *handles, expected=refusal is None):
+            self._refuse("split_polygon", call, refusal)
+            return
+        edge = call()
+        # the new edge runs from a to b: its half-edge is the model's a→b one (placeholder -1)
+        x = edge.halfedge
+        assert x.origin.id == sim.halfedges[-1][0] and x.target.id == sim.halfedges[-1][1]
+        self._done("split_polygon", sim, {"edge": {-1: edge.id}, "halfedge": {-1: x.id}})
+
+    @precondition(lambda self: self.model.edges)
+    @rule(data=st.data(), any_edge=st.integers(0, 3))
+    def join_polygons(self, data, any_edge):
+        m = self.model
+        inner = [e for e, (_a, _b, h, t) in m.edges.items() if m.face[h] is not None and m.face[t] is not None]
+        e = data.draw(st.sampled_from(sorted(inner) if inner and any_edge else sorted(m.edges)), label="edge")
+        sim, p, refusal = self._simulate(lambda s: s.join_polygons(e))
+        call = lambda: self.mesh.join_polygons(self.E(e))  # noqa: E731
+        if not self._ask("join_polygons", self.E(e), expected=refusal is None):
+            self._refuse("join_polygons", call, refusal)
+            return
+        assert call().id == p, "join_polygons: the polygon left of e.halfedge survives"
+        self._done("join_polygons", sim)
+
+    @precondition(lambda self: self.model.polygons and len(self.model.vertices) < MAX_GROWN)
+    @rule(data=st.data(), position=st.none() | st.none() | POSITIONS)
+    def poke_polygon(self, data, position):
+        m = self.model
+        p = data.draw(st.sampled_from(sorted(self.model.polygons)), label="polygon")
+        phe = self._polygon_halfedges()
+        sim, _c, refusal = self._simulate(lambda s: s.poke_polygon(p, position, phe))
+        call = lambda: self.mesh.poke_polygon(self.P(p), position)  # noqa: E731
+        if not self._ask("poke_polygon", self.P(p), expected=refusal is None):
+            self._refuse("poke_polygon", call, refusal)
+            return
+        c = call()
+        self._check_new_position(sim, c, position, [m.origin(h) for h in m.rotated(p, phe[p])])
+        self._done("poke_polygon", sim, {"vertex": {-1: c.id}})
+
+    @precondition(lambda self: self.model.edges)
+    @rule(data=st.data(), any_edge=st.integers(0, 3))
+    def flip_edge(self, data, any_edge):
+        m = self.model
+
+        def flippable(e):
+            _a, _b, h, t = m.edges[e]
+            p, q = m.face[h], m.face[t]
+            return p is not None and q is not None and p != q and len(m.polygons[p]) == len(m.polygons[q]) == 3
+
+        candidates = sorted(e for e in m.edges if flippable(e))
+        e = data.draw(st.sampled_from(candidates if candidates and any_edge else sorted(m.edges)), label="edge")
+        sim, _e, refusal = self._simulate(lambda s: s.flip_edge(e))
+        call = lambda: self.mesh.flip_edge(self.E(e))  # noqa: E731
+        if not self._ask("flip_edge", self.E(e), expected=refusal is None):
+            self._refuse("flip_edge", call, refusal)
+            return
+        assert call().id == e
+        self._done("flip_edge", sim)
+
+    @precondition(lambda self: self.model.edges)
+    @rule(data=st.data(), any_halfedge=st.integers(0, 3))
+    def collapse_edge(self, data, any_halfedge):
+        m = self.model
+        inner = sorted(h for h in m.halfedges if m.face[h] is not None and m.face[m.twin(h)] is not None)
+        beside = sorted(h for h in m.halfedges if m.face[h] is not None or m.face[m.twin(h)] is not None)
+        some = [m.live("halfedge"), beside or m.live("halfedge"), inner or beside or m.live("halfedge")]
+        h = data.draw(st.sampled_from(some[min(any_halfedge, 2)]), label="halfedge")
+        # the model knows some refusals; the rest of the (generalised) link condition is the store's to decide
+        known = self._simulate(lambda s: s.check_collapse_edge(h))[2]
+        call = lambda: self.mesh.collapse_edge(self.H(h))  # noqa: E731
+        if not self._ask("collapse_edge", self.H(h), expected=False if known is not None else None):
+            self._refuse("collapse_edge", call, known)
+            return
+        sim, w, refusal = self._simulate(lambda s: s.collapse_edge(h))
+        assert refusal is None
+        assert call().id == w, "collapse_edge returns the target, which survives"
+        self._done("collapse_edge", sim)
+
+    @precondition(lambda self: self.model.edges)
+    @rule(data=st.data(), any_pair=st.integers(0, 3))
+    def heal_edges(self, data, any_pair):
+        m = self.model
+        through = {}  # vertex of degree 2 -> its two edges (not loops)
+        for v in m.vertices:
+            out = m.outgoing(v)
+            edges = sorted({m.halfedges[x][2] for x in out})
+            if len(out) == 2 and len(edges) == 2:
+                through[v] = edges
+        es = sorted(m.edges)
+        if through and any_pair:
+            e1, e2 = data.draw(st.permutations(through[data.draw(st.sampled_from(sorted(through)), label="v")]),
+                               label="edges")
+        else:
+            e1, e2 = data.draw(st.sampled_from(es), label="e1"), data.draw(st.sampled_from(es), label="e2")
+        sim, _e, refusal = self._simulate(lambda s: s.heal_edges(e1, e2))
+        call = lambda: self.mesh.heal_edges(self.E(e1), self.E(e2))  # noqa: E731
+        if not self._ask("heal_edges", self.E(e1), self.E(e2), expected=refusal is None):
+            self._refuse("heal_edges", call, refusal)
+            return
+        assert call().id == e1, "heal_edges keeps e1"
+        self._done("heal_edges", sim)
+
+    @precondition(lambda self: self.model.halfedges)
+    @rule(data=st.data(), any_halfedge=st.integers(0, 3))
+    def fill_hole(self, data, any_halfedge):
+        m = self.model
+        free = m.free_halfedges()
+        h = data.draw(st.sampled_from(free if free and any_halfedge else m.live("halfedge")), label="halfedge")
+        loop, rows = [h], self._halfedge_rows()
+        while rows[loop[-1]][HE_NEXT] != h and len(loop) <= len(rows):
+            loop.append(rows[loop[-1]][HE_NEXT])
+        if m.face[h] is None:
+            # the next cycle of a free half-edge: free half-edges that chain, a loop add_polygon accepts
+            assert all(m.face[x] is None for x in loop), f"the next cycle {loop} of a free half-edge is not free"
+            assert all(m.halfedges[x][1] == m.origin(y) for x, y in zip(loop, loop[1:] + loop[:1]))
+            assert m.can_close(loop)
+        sim, _p, refusal = self._simulate(lambda s: s.fill_hole(h, loop))
+        call = lambda: self.mesh.fill_hole(self.H(h))  # noqa: E731
+        if not self._ask("fill_hole", self.H(h), expected=refusal is None):
+            self._refuse("fill_hole", call, refusal)
+            return
+        p = call()
+        self._done("fill_hole", sim, {"polygon": {-1: p.id}})
+
+    @precondition(lambda self: self.model.polygons)
+    @rule(data=st.data())
+    def triangulate_polygon(self, data):
+        m = self.model
+        big = sorted(p for p, loop in m.polygons.items() if len(loop) > 3)
+        p = data.draw(st.sampled_from(big or sorted(m.polygons)), label="polygon")
+        sim, triangles, refusal = self._simulate(lambda s: s.triangulate_polygon(p, self._polygon_halfedges()))
+        call = lambda: self.mesh.triangulate_polygon(self.P(p))  # noqa: E731
+        if not self._ask("triangulate_polygon", self.P(p), expected=refusal is None):
+            self._refuse("triangulate_polygon", call, refusal)
+            return
+        got = call()
+        assert len(got) == len(triangles) and got[0].id == p
+        if len(triangles) == 1:
+            assert dump(self.store) == self.last_dump, "triangulating a polygon of degree ≤ 3 changed the database"
+            return
+        # the triangles come in fan order: the i-th is the model's i-th
+        self._done("triangulate_polygon", sim, {"polygon": {q: g.id for q, g in zip(triangles[1:], got[1:])}})
+
     # -- properties and positions -------------------------------------------------
 
     def _handle(self, kind: str, i: int):
@@ -796,6 +1587,8 @@ class MeshMachine(RuleBasedStateMachine):
         i = data.draw(st.sampled_from(sorted(m.removed[kind]) + [never]), label="id")
         live = sorted(m.vertices)
         other = self.V(live[0]) if live else None
+        polygon = self.P(min(m.polygons)) if m.polygons else None
+        edge = self.E(min(m.edges)) if m.edges else None
         if kind == "vertex":
             v = self.V(i)
             calls = [lambda: self.mesh.remove_vertex(v), lambda: v.degree, lambda: v.neighbors(),
@@ -807,21 +1600,42 @@ class MeshMachine(RuleBasedStateMachine):
             if other is not None:
                 calls += [lambda: self.mesh.add_edge(other, v), lambda: self.mesh.add_edge(v, other),
                           lambda: self.mesh.add_polygon([other, v])]
+            if polygon is not None:
+                corner = polygon.halfedge
+                calls += [lambda: self.mesh.split_polygon(polygon, corner, v),
+                          lambda: self.mesh.can_split_polygon(polygon, v, corner)]
         elif kind == "edge":
             e = self.E(i)
             calls = [lambda: self.mesh.remove_edge(e), lambda: e.vertices(), lambda: e.halfedges(),
                      lambda: self.mesh.edge(i), lambda: e.__setitem__("w", 1), lambda: e.__delitem__("w"),
-                     lambda: self.mesh.set_property_array("edge", "w", [e], [1])]
+                     lambda: self.mesh.set_property_array("edge", "w", [e], [1]),
+                     lambda: self.mesh.split_edge(e), lambda: self.mesh.can_split_edge(e),
+                     lambda: self.mesh.join_polygons(e), lambda: self.mesh.can_join_polygons(e),
+                     lambda: self.mesh.flip_edge(e), lambda: self.mesh.can_flip_edge(e),
+                     lambda: self.mesh.heal_edges(e, e), lambda: self.mesh.can_heal_edges(e, e)]
+            if edge is not None:
+                calls += [lambda: self.mesh.heal_edges(edge, e), lambda: self.mesh.can_heal_edges(e, edge)]
         elif kind == "halfedge":
             h = self.H(i)
             calls = [lambda: h.next, lambda: h.origin, lambda: self.mesh.add_polygon([h]),
                      lambda: self.mesh.can_add_polygon([h]), lambda: self.mesh.halfedge(i),
-                     lambda: h["uv"], lambda: h.__setitem__("uv", (1.0, 2.0))]
+                     lambda: h["uv"], lambda: h.__setitem__("uv", (1.0, 2.0)),
+                     lambda: self.mesh.collapse_edge(h), lambda: self.mesh.can_collapse_edge(h),
+                     lambda: self.mesh.fill_hole(h), lambda: self.mesh.can_fill_hole(h)]
+            if polygon is not None:
+                corner = polygon.halfedge
+                calls += [lambda: self.mesh.split_polygon(polygon, h, corner),
+                          lambda: self.mesh.can_split_polygon(polygon, corner, h)]
         else:
             p = self.P(i)
             calls = [lambda: self.mesh.remove_polygon(p), lambda: p.vertices(), lambda: p.degree,
                      lambda: self.mesh.polygon(i), lambda: p.__setitem__("label", "x"),
-                     lambda: self.mesh.set_property_array("polygon", "label", [i], ["x"])]
+                     lambda: self.mesh.set_property_array("polygon", "label", [i], ["x"]),
+                     lambda: self.mesh.poke_polygon(p), lambda: self.mesh.can_poke_polygon(p),
+                     lambda: self.mesh.triangulate_polygon(p), lambda: self.mesh.can_triangulate_polygon(p)]
+            if other is not None:
+                calls += [lambda: self.mesh.split_polygon(p, other, other),
+                          lambda: self.mesh.can_split_polygon(p, other, other)]
         call = data.draw(st.sampled_from(calls), label="call")
         self.refused(call, ElementNotFoundError)
 
@@ -840,8 +1654,26 @@ class MeshMachine(RuleBasedStateMachine):
             lambda: self.mesh.set_positions([v], np.zeros((1, 2))),
             lambda: self.mesh.set_property_array("vertex", "t", [v.id, v.id], [1.0, 2.0]),
             lambda: self.mesh.set_property_array("vertex", "t", [v.id], ["x"]),
+            *self._malformed_euler(v),
         ]), label="call")
         self.refused(call, InvalidInputError)
+
+    def _malformed_euler(self, v) -> list:
+        """Euler operator calls with arguments of the wrong type or value (a vertex ``v`` at hand)."""
+        m, calls = self.model, []
+        if m.edges:
+            e = self.E(min(m.edges))
+            calls += [lambda: self.mesh.split_edge(e, (math.nan, 0.0, 0.0)),
+                      lambda: self.mesh.split_edge(e, (1.0, 2.0)),
+                      lambda: self.mesh.split_edge(e, triangulate=1),
+                      lambda: self.mesh.heal_edges(e, v)]
+        if m.polygons:
+            p = self.P(min(m.polygons))
+            calls += [lambda: self.mesh.poke_polygon(p, (0.0, math.inf, 0.0)),
+                      lambda: self.mesh.split_polygon(p, v.id, v),
+                      lambda: self.mesh.can_split_polygon(p, v, "a"),
+                      lambda: self.mesh.triangulate_polygon(v)]
+        return calls
 
     # -- other connections --------------------------------------------------------
 
@@ -895,7 +1727,8 @@ class MeshMachine(RuleBasedStateMachine):
             return
         m = self.model
         mesh = self.mesh
-        d = dump(self.store)
+        d = self.current_dump or dump(self.store)
+        self.current_dump = None
         self.last_dump = d
         if not self.stack:
             self.committed_dump = d
