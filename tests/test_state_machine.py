@@ -98,8 +98,8 @@ it takes from the store: a new edge's ``halfedge`` is the one from its first
 end to its second (the cut a→b, a spoke from the new vertex), and after one
 operator cuts a polygon twice (split_edge with ``triangulate`` when both
 sides are one triangle) each part's ``halfedge`` is its first half-edge.
-Property means are taken as the store takes them (``sum(values) / n`` in
-the sources' order).
+Property means are taken as the store takes them (`mean`: the exactly
+rounded sum divided by n, never overflowing for finite values).
 
 A failure is reported without shrinking (replaying against a database is
 slow); set ``HESTORE_SHRINK=1`` for a minimal failing sequence.
@@ -197,6 +197,17 @@ def python_values(array) -> list:
             x = None if all(c is None for c in x) else tuple(x)
         out.append(x)
     return out
+
+
+def mean(values) -> float:
+    """The mean of floats as the store takes it: the exactly rounded sum over n, which cannot overflow."""
+    n = len(values)
+    if all(math.isfinite(x) for x in values):
+        try:
+            return math.fsum(values) / n
+        except OverflowError:
+            return math.fsum(x / n for x in values)
+    return sum(values) / n
 
 
 class Rollback(Exception):
@@ -399,7 +410,7 @@ class Model:
         ``mean``: the mean for float64 (where every source has a value), the
         first source's otherwise (a new vertex); ``corner``: the mean for
         float64, the default otherwise (a new corner). Means are taken as the
-        store takes them (``sum(values) / n``, in the sources' order).
+        store takes them (`mean`).
         """
         is_float = name in ("t", "uv")
         out = []
@@ -410,9 +421,9 @@ class Model:
             elif not is_float or any(x is None for x in found):
                 value = None
             elif isinstance(found[0], tuple):
-                value = tuple(sum(x[k] for x in found) / len(found) for k in range(len(found[0])))
+                value = tuple(mean([x[k] for x in found]) for k in range(len(found[0])))
             else:
-                value = sum(found) / len(found)
+                value = mean(found)
             out.append((target, value))
         for target, value in out:
             if value is None:
@@ -425,7 +436,7 @@ class Model:
         xyz = [self.positions[v] for v in vs]
         if any(p is None for p in xyz):
             return None
-        return tuple(sum(p[k] for p in xyz) / len(xyz) for k in range(3))
+        return tuple(mean([p[k] for p in xyz]) for k in range(3))
 
     def check_policy(self, a: int, b: int, ignore=()) -> None:
         """Refuse (`PolicyError`) a new edge a–b that would be a loop or a parallel edge the mesh forbids."""
@@ -637,6 +648,11 @@ class Model:
             if self.face[x] is not None and len(self.polygons[self.face[x]]) == 3:
                 x1, x2 = self.step(x), self.step(x, 2)
                 dissolve.append((x1, x2) if x == h else (x2, x1))
+        # On t's side the corner at w moves from t to the half-edge after it, with t's value.
+        if self.face[t] is not None:
+            after_t = self.step(t)
+            if after_t not in (h, t) and not any(after_t in pair for pair in dissolve):
+                self.derive("uv", [(after_t, "copy", (t,))])
         for x in self.outgoing(u):
             if x not in (h, t):
                 self.set_origin(x, w)

@@ -586,6 +586,10 @@ def collapse_edge(uow: UnitOfWork, h: int) -> int:
     """
     plan = check_collapse_edge(uow, h)
     t, u, w = plan.t, plan.u, plan.w
+    # On t's side the corner at w moves from t to the half-edge after it: it keeps t's value.
+    after_t = uow.he(t)[NEXT]
+    moves = uow.he(t)[POLYGON] is not None and after_t not in (h, t)
+    corners = [(after_t, "copy", (t,))] if moves and not any(after_t in pair for pair in plan.dissolve) else []
     if plan.dissolve:
         # What the dissolving touches, in one query: the far corners' stars, the outer polygons, the dropped edges.
         outer = [uow.he(drop)[TWIN] for _keep, drop in plan.dissolve]
@@ -614,7 +618,7 @@ def collapse_edge(uow: UnitOfWork, h: int) -> int:
         if uow.vhe(w) not in rest:
             uow.set_vhe(w, min(rest))
         adjust_outgoing(uow, w)  # u's free half-edges are w's now
-    uow.derive("halfedge", [(keep, "copy", (outer,)) for outer, keep in moved])
+    uow.derive("halfedge", corners + [(keep, "copy", (outer,)) for outer, keep in moved])
     return w
 
 
@@ -623,9 +627,11 @@ def collapse_edge(uow: UnitOfWork, h: int) -> int:
 
 def check_heal_edges(uow: UnitOfWork, e1: int, e2: int) -> tuple[int, int, int, int, int]:
     """``(x1, y1, x2, y2, v)`` of `heal_edges`: x1 arrives at the shared vertex ``v``, x2 leaves it."""
+    uow.load(edges=(e1, e2))
+    uow.edge_he(e1)
+    uow.edge_he(e2)
     if e1 == e2:
         raise _refuse(f"edge {e1} cannot be healed with itself", (("edge", e1),), "same-edge")
-    uow.load(edges=(e1, e2))
     ends = []
     for e in (e1, e2):
         h = uow.edge_he(e)

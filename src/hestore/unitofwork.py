@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
 from hestore.errors import ElementNotFoundError, InvariantViolationError, InvalidInputError, Violation
-from hestore.values import Property, value_of
+from hestore.values import Property, mean, value_of
 from hestore.values import rows as value_rows
 
 __all__ = [
@@ -704,7 +704,7 @@ class UnitOfWork:
         xyz = [found.get(v) for v in ids]
         if any(p is None or None in p for p in xyz):
             return None
-        return tuple(sum(p[k] for p in xyz) / len(xyz) for k in range(3))
+        return tuple(mean([p[k] for p in xyz]) for k in range(3))
 
     def _values(self, props: list[Property], ids: set[int]) -> dict:
         """``{(property id, id): value or None}`` as this transaction sees them."""
@@ -760,9 +760,9 @@ class UnitOfWork:
                 elif any(x is None for x in found):
                     value = None
                 elif prop.shape:
-                    value = tuple(sum(x[k] for x in found) / len(found) for k in range(prop.shape[0]))
+                    value = tuple(mean([x[k] for x in found]) for k in range(prop.shape[0]))
                 else:
-                    value = sum(found) / len(found)
+                    value = mean(found)
                 if value is None:
                     if loaded.get(target) is NEW and (prop.id, target) not in self._vals:
                         continue  # nothing stored, nothing to remove
