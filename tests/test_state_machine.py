@@ -97,7 +97,7 @@ The Euler rules' model is exact where SPEC is silent in two places, which
 it takes from the store: a new edge's ``halfedge`` is the one from its first
 end to its second (the cut a→b, a spoke from the new vertex), and after one
 operator cuts a polygon twice (split_edge with ``triangulate`` when both
-sides are one triangle) each part's ``halfedge`` is its first half-edge.
+sides are one triangle) ``halfedge`` follows `split_polygon`'s rule each time.
 Property means are taken as the store takes them (`mean`: the exactly
 rounded sum divided by n, never overflowing for finite values).
 
@@ -491,8 +491,9 @@ class Model:
         a→b; the polygon keeps the part holding its ``halfedge`` (or the
         first, ``keep_first``), the other is the new polygon with its values.
         The new a→b corner copies ``ha``'s value, b→a ``hb``'s. Afterwards
-        each part's ``halfedge`` is its first half-edge (what the store does;
-        it matters only where one operator cuts one polygon twice).
+        the polygon's ``halfedge`` stays where it is when it is in the kept
+        part, else it is the kept part's first half-edge; the new polygon's
+        is its first half-edge.
         """
         e, x, y, q = new
         p = self.face[ha]
@@ -504,7 +505,9 @@ class Model:
         kept, moved = (first + [y], second + [x]) if keep_first else (second + [x], first + [y])
         self.place(p, kept)
         self.place(q, moved)
-        phe[p], phe[q] = kept[0], moved[0]
+        if phe[p] not in kept:
+            phe[p] = kept[0]
+        phe[q] = moved[0]
         self.derive("label", [(q, "copy", (p,))])
         self.derive("uv", [(x, "copy", (ha,)), (y, "copy", (hb,))])
         return q
@@ -531,6 +534,8 @@ class Model:
             loop = self.polygons[self.face[t]]
             loop.insert(loop.index(t), t2)
             self.face[t2] = self.face[t]
+            if phe.get(self.face[t]) == t:
+                phe[self.face[t]] = t2  # the polygon's first corner stays at b
         self.derive("w", [(e2, "copy", (e,))])
         # t2 is the corner at b where t was; h2 and t are the new corners at v
         self.derive("uv", [(t2, "copy", (t,)), (h2, "corner", (h, after[h])), (t, "corner", (t, after[t]))])
