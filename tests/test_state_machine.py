@@ -355,14 +355,7 @@ class Model:
         _a, _b, h, t = self.edges[e]
         for p in {self.face[h], self.face[t]} - {None}:
             self.remove_polygon(p)
-        del self.edges[e]
-        for x in (h, t):
-            del self.halfedges[x]
-            del self.face[x]
-            self.values["uv"].pop(x, None)
-            self.removed["halfedge"].add(x)
-        self.values["w"].pop(e, None)
-        self.removed["edge"].add(e)
+        self.drop_edge(e)
 
     def remove_vertex(self, v: int) -> None:
         for e in sorted({self.halfedges[h][2] for h in self.outgoing(v)}):
