@@ -21,6 +21,7 @@ vocabulary, and analysed with networkx.
 from hestore.errors import (
     ElementNotFoundError,
     EulerError,
+    RevisionNotFoundError,
     HalfEdgeNotFreeError,
     HestoreError,
     InvalidInputError,
@@ -76,6 +77,7 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "EulerError",
+    "RevisionNotFoundError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",

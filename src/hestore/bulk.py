@@ -167,6 +167,7 @@ def import_arrays(
     allow_loops: bool = True,
     allow_multi_edges: bool = True,
     progress: Progress | None = None,
+    replace: bool = False,
 ) -> ImportReport:
     """Store a polygon soup as a new mesh, built set-based.
 
@@ -196,6 +197,9 @@ def import_arrays(
         The new mesh's policy (see `Store.create_mesh`).
     progress : callable, optional
         ``progress(stage, done, total)``.
+    replace : bool
+        Replace a mesh of that name, in the same transaction as the import:
+        the old mesh goes only if the new one is stored.
 
     Returns
     -------
@@ -222,9 +226,16 @@ def import_arrays(
     (1, 1)
     """
     _check_on_error(on_error)
-    _check_name(store, name)
+    _check_replace(replace)
+    if not replace:
+        _check_name(store, name)
     pos, soup = _as_positions(positions), ragged(polygons)
-    return _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress)
+    return _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace)
+
+
+def _check_replace(replace: object) -> None:
+    if not isinstance(replace, bool):
+        raise InvalidInputError(f"replace is True or False, not {replace!r}")
 
 
 def _check_name(store: "Store", name: str) -> None:
@@ -281,7 +292,7 @@ def _file_properties(data: FileData, built, soup: Ragged, source: str | None) ->
 
 def _import(
     store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *,
-    lines=None, source=None, index_base=0, data: FileData | None = None,
+    lines=None, source=None, index_base=0, data: FileData | None = None, replace: bool = False,
 ):
     """Decide, then write: nothing is stored unless every check has passed."""
     if progress is not None:
@@ -299,13 +310,18 @@ def _import(
         exc.skipped = first
         raise exc
     columns = _file_properties(data, built, soup, source) if data is not None else []
-    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns)
+    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace)
     declared = [spec for spec, _, _ in columns]
     return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared)
 
 
-def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=()) -> "Mesh":
-    """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block)."""
+def _write(
+    store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=(), replace=False
+) -> "Mesh":
+    """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block).
+
+    With ``replace``, a mesh of that name is deleted in the same step.
+    """
     tables = {
         "vertices": {"id": a.v_id, "halfedge": a.v_halfedge, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]},
         "halfedges": {
@@ -323,6 +339,8 @@ def _write(store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, 
     session = store.session
     outer = not session.in_transaction
     with session.scope():
+        if replace and name in store.meshes():
+            store.delete_mesh(name)
         mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges)
         with session.editing(mesh.ref) as uow:
             uow.insert_bulk(BulkRows(tables, report), counters)
@@ -346,6 +364,7 @@ def import_file(
     allow_loops: bool = True,
     allow_multi_edges: bool = True,
     progress: Progress | None = None,
+    replace: bool = False,
 ) -> ImportReport:
     """Import an OFF, OBJ or PLY file (ASCII or binary) as a new mesh.
 
@@ -361,7 +380,7 @@ def import_file(
         The file; its format comes from its extension.
     name : str, optional
         The new mesh's name; by default the file name without extension.
-    on_error, allow_loops, allow_multi_edges, progress
+    on_error, allow_loops, allow_multi_edges, progress, replace
         As for `import_arrays`.
 
     Returns
@@ -389,7 +408,9 @@ def import_file(
     kind = mesh_io.format_of(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
-    _check_name(store, name)
+    _check_replace(replace)
+    if not replace:
+        _check_name(store, name)
     read_progress = None
     if progress is not None:
         read_progress = lambda done, total: progress("read", done, total)  # noqa: E731
@@ -407,6 +428,7 @@ def import_file(
         source=path,
         index_base=1 if kind == "obj" else 0,  # OBJ counts vertices from 1; say so in messages
         data=FileData(soup.vertex_properties, soup.polygon_properties, soup.corner_properties),
+        replace=replace,
     )
 
 

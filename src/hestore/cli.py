@@ -7,7 +7,8 @@ dispatches, and turns every error a user can cause (hestore's own, an
 unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
-Commands: ``demo``, ``import FILE``, ``export NAME FILE``, ``list``,
+Commands: ``demo``, ``import FILE [--replace]``, ``export NAME FILE``, ``list``,
+``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``,
 ``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
 components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, through
 `hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
@@ -94,15 +95,15 @@ def _cmd_list(args: argparse.Namespace) -> int:
 def _cmd_import(args: argparse.Namespace) -> int:
     path = args.file
     with _open(args) as store:
+        name = args.name if args.name is not None else os.path.splitext(os.path.basename(path))[0]
+        replacing = args.replace and name in store.meshes()
         try:
             with ProgressBar(units=_IMPORT_UNITS) as bar:
-                report = store.import_file(path, args.name, on_error=args.on_error, progress=bar)
+                report = store.import_file(path, args.name, on_error=args.on_error, progress=bar, replace=args.replace)
         except MeshExistsError:
-            # As hestore.bulk.import_file: the file name without its extension.
-            name = args.name if args.name is not None else os.path.splitext(os.path.basename(path))[0]
             return _error(
                 f"a mesh named {name!r} already exists in {urls.shown(store.url)}; "
-                "import under another name with --name NAME"
+                "import under another name with --name NAME, or replace it with --replace"
             )
         except HestoreError as exc:
             skipped = getattr(exc, "skipped", None)
@@ -114,12 +115,41 @@ def _cmd_import(args: argparse.Namespace) -> int:
                 "(--on-error skip stores the mesh without such polygons)"
             )
     print(report.summary())
+    if replacing:
+        print(f"replaced the mesh {name!r} that was there (in the same transaction)")
     if report.skipped:
         print(
             f"hestore: warning: {len(report.skipped)} polygon(s) skipped (--on-error skip); "
             f"mesh {report.mesh.name!r} was stored without them",
             file=sys.stderr,
         )
+    return 0
+
+
+def _cmd_delete(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        counts = mesh.counts()
+        store.delete_mesh(args.name)
+    print(f"deleted mesh {args.name!r}: {counts.vertices} vertices, {counts.edges} edges, {counts.polygons} polygons")
+    return 0
+
+
+def _cmd_rename(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        store.rename_mesh(args.name, args.new_name)
+    print(f"renamed mesh {args.name!r} to {args.new_name!r}")
+    return 0
+
+
+def _cmd_copy(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        copy = store.copy_mesh(args.name, args.new_name, revision=args.revision)
+        counts = copy.counts()
+    print(
+        f"copied mesh {args.name!r} to {args.new_name!r}: {counts.vertices} vertices, {counts.edges} edges, "
+        f"{counts.polygons} polygons"
+    )
     return 0
 
 
@@ -508,7 +538,34 @@ def build_parser() -> argparse.ArgumentParser:
         "stops with an error naming it and stores nothing; skip stores the mesh without it "
         "and lists it in the report",
     )
+    imp.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace a mesh of the same name, in the same transaction: the old mesh goes only if the "
+        "new one is stored",
+    )
     imp.set_defaults(func=_cmd_import)
+
+    delete = commands.add_parser("delete", help="delete a mesh and all its elements")
+    delete.add_argument("name", metavar="NAME", help="the mesh to delete")
+    delete.set_defaults(func=_cmd_delete)
+
+    rename = commands.add_parser("rename", help="give a mesh a new name")
+    rename.add_argument("name", metavar="NAME", help="the mesh to rename")
+    rename.add_argument("new_name", metavar="NEW", help="its new name (no mesh may have it)")
+    rename.set_defaults(func=_cmd_rename)
+
+    copy = commands.add_parser(
+        "copy",
+        help="copy a mesh: the same ids and content under a new name, independent afterwards",
+    )
+    copy.add_argument("name", metavar="NAME", help="the mesh to copy")
+    copy.add_argument("new_name", metavar="NEW", help="the copy's name (no mesh may have it)")
+    copy.add_argument(
+        "--revision", metavar="R", type=int, default=None,
+        help="the revision to copy (until history is kept: only the current one)",
+    )
+    copy.set_defaults(func=_cmd_copy)
 
     exp = commands.add_parser(
         "export",

@@ -42,6 +42,7 @@ __all__ = [
     "MeshNotFoundError",
     "PropertyNotFoundError",
     "InvalidInputError",
+    "RevisionNotFoundError",
     "MeshExistsError",
     "TopologyError",
     "NotAChainError",
@@ -88,6 +89,16 @@ class PropertyNotFoundError(HestoreError, KeyError):
     """No property of that name is declared on that element kind of the mesh."""
 
     def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
+class RevisionNotFoundError(HestoreError, KeyError):
+    """A revision of a mesh that was never made or is no longer kept.
+
+    Until history is kept, only a mesh's current revision can be named.
+    """
+
+    def __str__(self) -> str:  # KeyError would show the message quoted
         return str(self.args[0]) if self.args else ""
 
 

@@ -179,6 +179,8 @@ class Session:
         self._changed: set[int] = set()
         self._refs: dict[int, MeshRef] = {}
         self._born: list[MeshRef] = []
+        # (ref, name before) of every rename in the open transaction, to undo on rollback
+        self._renamed: list[tuple[MeshRef, str]] = []
         self._failed = False
         self._engine = drivers.make_engine(url, busy_timeout=self.busy_timeout)
         try:
@@ -260,6 +262,16 @@ class Session:
                 del self._refs[ref.id]
         del self._born[keep:]
 
+    def renamed(self, ref: MeshRef, name: str) -> None:
+        """Record that the open transaction renamed the mesh: its handles show ``name`` unless it rolls back."""
+        self._renamed.append((ref, ref.name))
+        ref.name = name
+
+    def _unrename(self, keep: int) -> None:
+        for ref, old in reversed(self._renamed[keep:]):
+            ref.name = old
+        del self._renamed[keep:]
+
     # -- errors ----------------------------------------------------------------
 
     def _translated(self, exc: BaseException, what: str) -> StoreError:
@@ -288,6 +300,7 @@ class Session:
                 self._exec("COMMIT")
         self._forget()
         self._born.clear()
+        self._renamed.clear()
 
     def _rollback(self) -> None:
         try:
@@ -298,10 +311,12 @@ class Session:
             # is dropped: the server rolls back what it held, nothing stays half-done.
             self._forget()
             self._kill_born(0)
+            self._unrename(0)
             self.close()
             return
         self._forget()
         self._kill_born(0)
+        self._unrename(0)
 
     def _forget(self) -> None:
         self._uows.clear()
@@ -345,6 +360,7 @@ class Session:
         finally:
             self._forget()
             self._kill_born(0)
+            self._unrename(0)
             self.caches.clear()
             try:
                 self._conn.close()
@@ -402,7 +418,7 @@ class Session:
         with self._guard("could not start a savepoint"):
             self._flush()
             self._exec(f"SAVEPOINT {name}")
-        saved = (set(self._locked), set(self._changed), len(self._born))
+        saved = (set(self._locked), set(self._changed), len(self._born), len(self._renamed))
         self._scopes.append(kind)
         try:
             yield self._conn
@@ -417,6 +433,7 @@ class Session:
                     self._exec(f"RELEASE SAVEPOINT {name}")
                 self._locked, self._changed = saved[0], saved[1]
                 self._kill_born(saved[2])
+                self._unrename(saved[3])
                 # Cached rows may hold edits the database just forgot.
                 self._uows.clear()
                 self._failed = False

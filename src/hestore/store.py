@@ -19,7 +19,7 @@ from typing import Iterator
 import sqlalchemy as sa
 
 from hestore import bulk, schema, urls
-from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError
+from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, RevisionNotFoundError
 from hestore.mesh import Mesh
 from hestore.session import Session
 
@@ -279,6 +279,111 @@ class Store:
         mesh = self.mesh(name)
         with self.session.editing(mesh.ref) as uow:
             uow.drop()
+
+    def rename_mesh(self, name: str, new_name: str) -> Mesh:
+        """Give the mesh called ``name`` a new name; its handles follow.
+
+        An edit of the catalogue like any other: inside a block it is undone
+        with the block (handles then show the old name again).
+
+        Raises
+        ------
+        MeshNotFoundError
+            No mesh has that name.
+        MeshExistsError
+            A mesh is called ``new_name`` already.
+        InvalidInputError
+            ``new_name`` cannot be a mesh name.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> part = store.create_mesh("part")
+        >>> store.rename_mesh("part", "bracket"), part.name, store.meshes()
+        (Mesh('bracket'), 'bracket', ['bracket'])
+        """
+        new_name = _checked_name(new_name)
+        mesh = self.mesh(name)
+        if new_name == mesh.name:
+            return mesh
+        m = schema.meshes
+        with self.session.scope() as conn:
+            self.session.lock(mesh.ref)
+            if conn.execute(sa.select(m.c.id).where(m.c.name == new_name)).first() is not None:
+                raise MeshExistsError(f"a mesh named {new_name!r} already exists")
+            try:
+                conn.execute(m.update().where(m.c.id == mesh.id).values(name=new_name))
+            except sa.exc.IntegrityError:
+                raise MeshExistsError(f"a mesh named {new_name!r} already exists") from None
+            self.session.renamed(mesh.ref, new_name)
+        return mesh
+
+    def copy_mesh(self, name: str, new_name: str, revision: int | None = None) -> Mesh:
+        """A new mesh with the same ids and content as the mesh called ``name``.
+
+        Elements, positions, properties and their values, the policy and the
+        id counters are copied in one set-based statement per table; the copy
+        is independent afterwards (its ids go on from the source's, so no id
+        the source ever used is handed out by the copy), and its revision is 1.
+
+        Parameters
+        ----------
+        name, new_name : str
+            The source and the copy.
+        revision : int, optional
+            The source's revision to copy. Until history is kept, only its
+            current revision exists.
+
+        Raises
+        ------
+        MeshNotFoundError
+            No mesh is called ``name``.
+        MeshExistsError
+            A mesh is called ``new_name`` already.
+        RevisionNotFoundError
+            ``revision`` is not the source's current revision.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> mesh = store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        >>> copy = store.copy_mesh("tri", "tri2")
+        >>> copy.counts() == mesh.counts(), copy.revision, copy.vertex(2).position
+        (True, 1, (0.0, 1.0, 0.0))
+        """
+        new_name = _checked_name(new_name)
+        source = self.mesh(name)
+        if revision is not None and (isinstance(revision, bool) or not isinstance(revision, int)):
+            raise InvalidInputError(f"a revision is an int, not {type(revision).__name__} {revision!r}")
+        m = schema.meshes
+        with self.session.scope() as conn:
+            # Locked: the tables are read by several statements, and must not change between them.
+            self.session.lock(source.ref)
+            row = conn.execute(sa.select(m).where(m.c.id == source.id)).one()
+            if revision is not None and revision != row.revision:
+                raise RevisionNotFoundError(
+                    f"mesh {source.name!r} has no revision {revision} kept: history is not kept, so only "
+                    f"its current revision {row.revision} can be copied"
+                )
+            copy = self.create_mesh(new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges)
+            conn.execute(
+                m.update()
+                .where(m.c.id == copy.id)
+                .values(
+                    revision=1,
+                    next_vertex=row.next_vertex,
+                    next_edge=row.next_edge,
+                    next_polygon=row.next_polygon,
+                    next_property=row.next_property,
+                )
+            )
+            for table in reversed(schema.MESH_TABLES):  # catalogue before values
+                cols = [c for c in table.c if c.name != "mesh_id"]
+                rows = sa.select(sa.literal(copy.id, sa.BigInteger), *cols).where(table.c.mesh_id == source.id)
+                conn.execute(table.insert().from_select([table.c.mesh_id, *cols], rows))
+        return copy
 
     # -- bulk ----------------------------------------------------------------------
 

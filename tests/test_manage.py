@@ -1,0 +1,269 @@
+"""Managing meshes: rename, copy, delete and import --replace, from Python and the command line.
+
+Every test runs on SQLite and PostgreSQL. A copy must hold the same rows as
+its source (ids, references, positions, the property catalogue and values),
+differ only in its mesh id, name and revision, and be independent
+afterwards; a refused call changes nothing; a rename or a replace inside a
+block that rolls back leaves the catalogue, and the handles, as they were.
+"""
+
+from __future__ import annotations
+
+import pytest
+import sqlalchemy as sa
+
+import hestore
+from hestore import cli, schema
+from hestore.errors import (
+    InvalidInputError,
+    MeshExistsError,
+    MeshNotFoundError,
+    RevisionNotFoundError,
+)
+
+from helpers import dump
+
+TRI = ([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]])
+
+
+def _mesh_rows(store: hestore.Store, mesh_id: int) -> dict[str, list[tuple]]:
+    """Every row of every table of one mesh, without the mesh id (sorted)."""
+    out = {}
+    with store.session.reading() as conn:
+        for table in schema.MESH_TABLES:
+            cols = [c for c in table.c if c.name != "mesh_id"]
+            rows = conn.execute(sa.select(*cols).where(table.c.mesh_id == mesh_id).order_by(*cols))
+            out[table.name] = [tuple(r) for r in rows]
+    return out
+
+
+def _rich(store: hestore.Store, name: str = "src") -> hestore.Mesh:
+    """A mesh with positions, properties, a removed element (an id gap) and edits after its import."""
+    mesh = store.import_arrays(name, *TRI).mesh
+    mesh.add_property("vertex", "t", "float64", default=0.5)
+    mesh.add_property("halfedge", "uv", "float64", shape=(2,))
+    mesh.add_property("polygon", "label", "str", default="")
+    mesh.vertex(1)["t"] = 7.0
+    mesh.polygon(0)["label"] = "roof"
+    mesh.halfedge(0)["uv"] = (0.25, 0.75)
+    mesh.split_edge(mesh.edge(0))
+    mesh.remove_vertex(mesh.add_vertex((5, 5, 5)))  # the highest id used is a removed one
+    return mesh
+
+
+# -- copy ---------------------------------------------------------------------
+
+
+def test_copy_has_the_same_rows_counters_and_policy(store):
+    source = _rich(store)
+    before = dump(store)
+    copy = store.copy_mesh("src", "dst")
+    assert copy.name == "dst" and store.meshes() == ["dst", "src"]
+    assert _mesh_rows(store, copy.id) == _mesh_rows(store, source.id)
+    assert copy.revision == 1 and source.revision == before_revision(before, source.id)
+    m = schema.meshes
+    with store.session.reading() as conn:
+        rows = {r.id: r for r in conn.execute(sa.select(m))}
+    for column in ("next_vertex", "next_edge", "next_polygon", "next_property", "allow_loops", "allow_multi_edges"):
+        assert getattr(rows[copy.id], column) == getattr(rows[source.id], column), column
+    assert copy.check() == [] and copy.vertex(1)["t"] == 7.0 and copy.polygon(0)["label"] == "roof"
+    assert copy.to_arrays().positions.tolist() == source.to_arrays().positions.tolist()
+
+
+def before_revision(before: dict, mesh_id: int) -> int:
+    names = [c.name for c in schema.meshes.c]
+    row = next(r for r in before["meshes"] if r[names.index("id")] == mesh_id)
+    return row[names.index("revision")]
+
+
+def test_copy_is_independent_and_never_reuses_the_sources_ids(store):
+    source = _rich(store)
+    copy = store.copy_mesh("src", "dst")
+    counters = (source.counts(), _mesh_rows(store, source.id))
+    m = schema.meshes
+    with store.session.reading() as conn:
+        used = conn.execute(sa.select(m.c.next_vertex).where(m.c.id == source.id)).scalar_one()
+    assert used > max(v.id for v in source.vertices()) + 1  # the removed vertex is the last one
+    v = copy.add_vertex()
+    assert v.id == used, "the copy must go on from the source's counter, never handing out an id it used"
+    copy.remove_polygon(copy.polygon(0))
+    copy.vertex(1)["t"] = -1.0
+    assert (source.counts(), _mesh_rows(store, source.id)) == counters
+    assert source.vertex(1)["t"] == 7.0 and copy.check() == [] and source.check() == []
+    store.delete_mesh("src")
+    assert copy.check() == [] and copy.counts().polygons == 1  # its own removal, not the source's deletion
+
+
+def test_copy_inside_a_block_sees_the_blocks_edits_and_rolls_back(store):
+    source = _rich(store)
+    with pytest.raises(RuntimeError):
+        with store.transaction():
+            source.add_vertex((9, 9, 9))
+            copy = store.copy_mesh("src", "dst")
+            assert copy.counts().vertices == source.counts().vertices
+            raise RuntimeError
+    assert store.meshes() == ["src"]
+    with pytest.raises(MeshNotFoundError):
+        copy.counts()
+
+
+def test_copy_of_the_current_revision_and_refusals(store):
+    source = _rich(store)
+    copy = store.copy_mesh("src", "now", revision=source.revision)
+    assert _mesh_rows(store, copy.id) == _mesh_rows(store, source.id)
+    before = dump(store)
+    with pytest.raises(RevisionNotFoundError) as info:
+        store.copy_mesh("src", "old", revision=source.revision - 1)
+    assert isinstance(info.value, KeyError) and str(source.revision - 1) in str(info.value)
+    with pytest.raises(MeshExistsError):
+        store.copy_mesh("src", "now")
+    with pytest.raises(MeshNotFoundError):
+        store.copy_mesh("nope", "x")
+    for bad in ("", " ", "a\nb", 7, None):
+        with pytest.raises(InvalidInputError):
+            store.copy_mesh("src", bad)
+    for bad in ("1", 1.0, True):
+        with pytest.raises(InvalidInputError):
+            store.copy_mesh("src", "x", revision=bad)
+    assert dump(store) == before
+
+
+# -- rename -------------------------------------------------------------------
+
+
+def test_rename_moves_the_name_and_every_handle_follows(store):
+    mesh = _rich(store)
+    v = mesh.vertex(0)
+    again = store.mesh("src")
+    assert store.rename_mesh("src", "part") == mesh
+    assert mesh.name == again.name == v.mesh.name == "part"
+    assert store.meshes() == ["part"] and store.mesh("part") == mesh
+    with pytest.raises(MeshNotFoundError):
+        store.mesh("src")
+    assert store.rename_mesh("part", "part") == mesh  # to its own name: nothing to do
+    assert mesh.check() == [] and v.position == (0.0, 0.0, 0.0)
+
+
+def test_rename_refused_changes_nothing(store):
+    _rich(store, "a")
+    store.create_mesh("b")
+    before = dump(store)
+    with pytest.raises(MeshExistsError):
+        store.rename_mesh("a", "b")
+    with pytest.raises(MeshNotFoundError):
+        store.rename_mesh("c", "d")
+    for bad in ("", "x" * 256, "tab\there", 3):
+        with pytest.raises(InvalidInputError):
+            store.rename_mesh("a", bad)
+    assert dump(store) == before and store.mesh("a").name == "a"
+
+
+def test_rename_rolled_back_restores_the_name_of_the_handles(store):
+    mesh = _rich(store)
+    with pytest.raises(RuntimeError):
+        with store.transaction():
+            store.rename_mesh("src", "tmp")
+            with store.transaction():
+                store.rename_mesh("tmp", "inner")
+            assert mesh.name == "inner"
+            raise RuntimeError
+    assert mesh.name == "src" and store.meshes() == ["src"]
+    with store.transaction():
+        store.rename_mesh("src", "kept")
+        try:
+            with store.transaction():  # a savepoint rolled back alone
+                store.rename_mesh("kept", "gone")
+                raise RuntimeError
+        except RuntimeError:
+            pass
+        assert mesh.name == "kept"
+    assert store.meshes() == ["kept"] and mesh.name == "kept"
+
+
+# -- import --replace -------------------------------------------------------------
+
+
+def test_import_replace_swaps_the_mesh_in_one_transaction(store):
+    old = _rich(store, "m")
+    report = store.import_arrays("m", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]], replace=True)
+    assert store.meshes() == ["m"] and report.mesh.counts().polygons == 1 and report.mesh.check() == []
+    with pytest.raises(MeshNotFoundError):
+        old.counts()
+    # Nothing of the old mesh is left behind.
+    with store.session.reading() as conn:
+        for table in schema.MESH_TABLES:
+            assert conn.execute(sa.select(sa.func.count()).where(table.c.mesh_id == old.id)).scalar() == 0
+
+
+def test_import_replace_that_fails_keeps_the_old_mesh(store, tmp_path):
+    _rich(store, "m")
+    before = dump(store)
+    with pytest.raises(InvalidInputError):
+        store.import_arrays("m", [(0, 0, 0)], [[0, 1, 2]], replace=True)  # index out of range
+    bad = tmp_path / "m.off"
+    bad.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")  # truncated
+    with pytest.raises(InvalidInputError):
+        store.import_file(bad, replace=True)
+    with pytest.raises(InvalidInputError):
+        store.import_arrays("m", *TRI, replace="yes")
+    assert dump(store) == before
+    with pytest.raises(MeshExistsError):
+        store.import_arrays("m", *TRI)
+    report = store.import_arrays("new", *TRI, replace=True)  # nothing to replace: a plain import
+    assert report.mesh.counts().polygons == 2
+
+
+# -- the command line -----------------------------------------------------------
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_delete_rename_copy_and_import_replace(capsys, db_url, tmp_path):
+    assert run(capsys, "--db", db_url, "demo")[0] == 0
+    code, out, err = run(capsys, "--db", db_url, "copy", "demo", "twin")
+    assert code == 0 and out.startswith("copied mesh 'demo' to 'twin': ") and err == ""
+    code, out, _ = run(capsys, "--db", db_url, "rename", "twin", "other")
+    assert code == 0 and out == "renamed mesh 'twin' to 'other'\n"
+    with hestore.open(db_url) as store:
+        assert store.meshes() == ["demo", "other"]
+        assert _mesh_rows(store, store.mesh("other").id) == _mesh_rows(store, store.mesh("demo").id)
+        revision = store.mesh("demo").revision
+    assert run(capsys, "--db", db_url, "copy", "demo", "same", "--revision", str(revision))[0] == 0
+    code, out, _ = run(capsys, "--db", db_url, "delete", "other")
+    assert code == 0 and out.startswith("deleted mesh 'other': ")
+
+    off = tmp_path / "demo.off"
+    off.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    code, out, err = run(capsys, "--db", db_url, "import", str(off))
+    assert code == 2 and "--replace" in err
+    code, out, err = run(capsys, "--db", db_url, "import", str(off), "--replace")
+    assert code == 0 and "replaced the mesh 'demo'" in out
+    with hestore.open(db_url) as store:
+        assert store.meshes() == ["demo", "same"] and store.mesh("demo").counts().polygons == 1
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (("delete", "nope"), "no mesh named 'nope'"),
+        (("rename", "nope", "x"), "no mesh named 'nope'"),
+        (("rename", "demo", "demo2"), "already exists"),
+        (("copy", "demo", "demo2"), "already exists"),
+        (("copy", "demo", "x", "--revision", "999"), "no revision 999"),
+        (("copy", "demo", ""), "name"),
+    ],
+)
+def test_cli_refusals_are_one_line_and_change_nothing(capsys, db_url, argv, words):
+    assert run(capsys, "--db", db_url, "demo")[0] == 0
+    assert run(capsys, "--db", db_url, "copy", "demo", "demo2")[0] == 0
+    with hestore.open(db_url) as store:
+        before = dump(store)
+    code, out, err = run(capsys, "--db", db_url, *argv)
+    assert code == 2 and out == "" and err.startswith("hestore: error: ") and err.count("\n") == 1
+    assert words in err and "Traceback" not in err
+    with hestore.open(db_url) as store:
+        assert dump(store) == before
