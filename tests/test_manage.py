@@ -267,3 +267,65 @@ def test_cli_refusals_are_one_line_and_change_nothing(capsys, db_url, argv, word
     assert words in err and "Traceback" not in err
     with hestore.open(db_url) as store:
         assert dump(store) == before
+
+
+# -- the dual -------------------------------------------------------------------
+
+MESHES = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+def _octahedron(store, name="octa"):
+    xyz = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+    faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    return store.import_arrays(name, xyz, faces).mesh
+
+
+def test_dual_of_an_octahedron_is_a_cube_with_centroids_and_orientation(store):
+    octa = _octahedron(store)
+    report = octa.dual("cube")
+    cube = report.mesh
+    assert cube.counts() == hestore.mesh.Counts(8, 24, 12, 6) and cube.check() == []
+    assert cube.stats().polygon_sizes == {4: 6} and cube.stats().is_closed
+    # Dual vertex i is the centroid of polygon i; dual polygon j goes around vertex j counter-clockwise.
+    third = 1 / 3
+    assert cube.vertex(0).position == pytest.approx((third, third, third))
+    for v in octa.vertices():
+        fan = [p.id for p in v.polygons()]
+        loop = [u.id for u in cube.polygon(v.id).vertices()]
+        i = loop.index(fan[0])
+        assert loop[i:] + loop[:i] == fan, "the dual polygon follows the fan counter-clockwise"
+    # Outward normals stay outward: the dual polygon around +z has its normal along +z.
+    top = [cube.vertex(u.id).position for u in cube.polygon(4).vertices()]
+    (ax, ay, _), (bx, by, _), (cx, cy, _) = top[:3]
+    assert (bx - ax) * (cy - ay) - (by - ay) * (cx - ax) > 0
+    assert octa.counts() == hestore.mesh.Counts(6, 24, 12, 8)  # the source is untouched
+
+
+def test_dual_of_cube1_matches_the_peers_counts_and_dual_of_dual(store):
+    mesh = store.import_file(MESHES / "cube1.off").mesh
+    dual = mesh.dual("cube1-dual").mesh
+    c = dual.counts()
+    assert (c.vertices, c.edges, c.polygons) == (15048, 22572, 7526)
+    assert dual.check() == [] and dual.stats().euler_characteristic == mesh.stats().euler_characteristic
+    back = dual.dual("cube1-dual-dual").mesh
+    assert back.counts() == mesh.counts() and back.check() == []
+
+
+def test_dual_refusals_store_nothing(store):
+    open_tri = store.import_arrays("tri", *TRI).mesh
+    _octahedron(store)
+    nowhere = store.create_mesh("nowhere")
+    a, b, c, d = (nowhere.add_vertex() for _ in range(4))
+    for f in [(a, c, b), (a, b, d), (a, d, c), (b, c, d)]:
+        nowhere.add_polygon(list(f))
+    before = dump(store)
+    with pytest.raises(hestore.TopologyError) as info:
+        open_tri.dual("x")
+    assert "not closed" in str(info.value) and info.value.refs
+    with pytest.raises(MeshExistsError):
+        store.mesh("octa").dual("tri")
+    with pytest.raises(InvalidInputError):
+        nowhere.dual("y")  # no positions
+    with pytest.raises(InvalidInputError):
+        store.mesh("octa").dual("")
+    assert dump(store) == before

@@ -28,14 +28,23 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
+import sqlalchemy as sa
 
 from hestore import build as _build
 from hestore import io as mesh_io
 from hestore import properties as props
 from hestore import schema, values
-from hestore.arrays import Ragged, TopologyArrays, polygon_halfedges, positions as position_array, ragged
+from hestore.arrays import (
+    Ragged,
+    TopologyArrays,
+    cycle_positions,
+    cycles,
+    polygon_halfedges,
+    positions as position_array,
+    ragged,
+)
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, MeshExistsError
+from hestore.errors import InvalidInputError, MeshExistsError, TopologyError
 from hestore.unitofwork import BulkRows, BulkValues
 from hestore.values import Property
 
@@ -445,6 +454,72 @@ def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
     loops = polygon_halfedges(h_id, h_next, p_he)
     corners = Ragged(loops.offsets, np.searchsorted(v_id, h_origin[loops.indices]))
     return position_array(vx, vy, vz, v_missing), corners, v_id, h_id[loops.indices]
+
+
+def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> ImportReport:
+    """Store the dual of a closed mesh as a new mesh called ``name``.
+
+    The dual has a vertex at the centroid of each polygon (in polygon id
+    order) and a polygon for each fan of polygons around a vertex, its
+    corners the fan's polygons counter-clockwise (so it faces the way the
+    mesh does); a pinched vertex gives one polygon per fan. Each edge of the
+    mesh becomes the dual edge between the polygons on its two sides.
+    Everything is computed set-based on the mesh's arrays, read in one
+    snapshot, and stored like an import (one transaction).
+
+    Raises
+    ------
+    TopologyError
+        The mesh has a free half-edge (a boundary or a wire edge): only a
+        closed mesh has a dual here.
+    InvalidInputError
+        A polygon's corner has no position.
+    MeshExistsError
+        A mesh is called ``name`` already.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> tetra = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    >>> mesh = store.import_arrays("tetra", tetra, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]).mesh
+    >>> d = mesh.dual("tetra*").mesh
+    >>> d.counts(), d.stats().is_closed, d.check()
+    (Counts(vertices=4, halfedges=12, edges=6, polygons=4), True, [])
+    """
+    _check_name(mesh.store, name)
+    h, p = schema.halfedges, schema.polygons
+    halfedge_columns = [h.c.id, h.c.origin, h.c.prev, h.c.twin, sa.func.coalesce(h.c.polygon, -1)]
+    with mesh.session.snapshot(mesh.ref) as snap:
+        (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_prev, h_twin, h_polygon), (p_id,) = snap.columns(
+            [position_request(), (h, halfedge_columns), (p, [p.c.id])]
+        )
+    free = np.flatnonzero(h_polygon < 0)
+    if len(free):
+        first = int(h_id[free[0]])
+        raise TopologyError(
+            f"mesh {mesh.name!r} is not closed ({len(free)} free half-edges, e.g. {first}): only a closed mesh "
+            f"has a dual",
+            (("halfedge", first),),
+        )
+    positions = position_array(vx, vy, vz, v_missing)
+    corner_vertex = np.searchsorted(v_id, h_origin)
+    if np.isnan(positions[corner_vertex]).any():
+        raise InvalidInputError(f"mesh {mesh.name!r} has polygon corners without a position: the dual needs them")
+    # Dual vertices: polygon centroids (a polygon's corners are its half-edges' origins).
+    poly = np.searchsorted(p_id, h_polygon)
+    degree = np.bincount(poly, minlength=len(p_id))
+    centroids = np.stack(
+        [np.bincount(poly, weights=positions[corner_vertex, k], minlength=len(p_id)) / degree for k in range(3)], axis=1
+    )
+    # Dual polygons: the cycles of onext(h) = twin(prev(h)), counter-clockwise around each origin.
+    onext = np.searchsorted(h_id, h_twin[np.searchsorted(h_id, h_prev)])
+    label, _on_cycle, _end = cycles(onext)
+    step = cycle_positions(onext, label)
+    order = np.lexsort((step, label, h_origin[label]))
+    starts = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]])
+    soup = Ragged(np.r_[starts, len(order)].astype(np.int64), poly[order].astype(np.int64))
+    return _import(mesh.store, name, centroids, soup, "raise", True, True, progress)
 
 
 def to_arrays(mesh: "Mesh") -> MeshArrays:

@@ -877,6 +877,23 @@ class Mesh:
 
         return graphs.to_networkx(self, kind, attrs)
 
+    def dual(self, name: str) -> bulk.ImportReport:
+        """Store the dual of this closed mesh as a new mesh; see `hestore.bulk.dual`.
+
+        Examples
+        --------
+        The dual of an octahedron is a cube:
+
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> xyz = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+        >>> faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+        >>> cube = store.import_arrays("octahedron", xyz, faces).mesh.dual("cube").mesh
+        >>> cube.counts(), cube.stats().polygon_sizes, cube.check()
+        (Counts(vertices=8, halfedges=24, edges=12, polygons=6), {4: 6}, [])
+        """
+        return bulk.dual(self, name)
+
     def to_arrays(self) -> bulk.MeshArrays:
         """``(positions, polygons, vertex_ids)``; see `hestore.bulk.to_arrays`.
 
