@@ -329,3 +329,57 @@ def test_dual_refusals_store_nothing(store):
     with pytest.raises(InvalidInputError):
         store.mesh("octa").dual("")
     assert dump(store) == before
+
+
+# -- separating pinched vertices ------------------------------------------------------
+
+
+def test_separate_a_hole_bounded_at_three_pinched_vertices(store):
+    """Three triangles around a triangular hole, each pair meeting only at a corner: three triangles apart."""
+    mesh = store.create_mesh("m")
+    a, b, c, x, y, z = (mesh.add_vertex(p) for p in [(0, 0, 0), (2, 0, 0), (1, 2, 0), (1, -1, 0), (2, 2, 0), (0, 2, 0)])
+    mesh.add_property("vertex", "t", "float64")
+    mesh.add_property("vertex", "tag", "str", default="")
+    a["t"], a["tag"] = 4.0, "corner a"
+    for tri in [(a, x, b), (b, y, c), (c, z, a)]:
+        mesh.add_polygon(list(tri))
+    s = mesh.stats()
+    assert s.pinched_vertices == 3 and s.components == 1
+    revision = mesh.revision
+    made = mesh.separate_nonmanifold_vertices()
+    assert sorted(v.id for v in made) == [a.id, b.id, c.id] and all(len(ws) == 1 for ws in made.values())
+    s = mesh.stats()
+    assert s.pinched_vertices == 0 and s.components == 3 and s.euler_characteristic == 3
+    assert mesh.check() == [] and mesh.revision == revision + 1 and mesh.counts().vertices == 9
+    (w,) = made[a]
+    assert w.position == a.position and w["t"] == 4.0 and w["tag"] == "corner a"
+    assert sorted(p.degree for p in mesh.polygons()) == [3, 3, 3]
+    assert mesh.separate_nonmanifold_vertices() == {} and mesh.revision == revision + 1
+
+
+def test_separate_keeps_wire_edges_and_the_first_fan(store):
+    mesh = store.create_mesh("m")
+    v = mesh.add_vertex((0, 0, 0))
+    ring = [mesh.add_vertex((float(i), 1.0, 0.0)) for i in range(6)]
+    f1 = mesh.add_polygon([v, ring[0], ring[1]])
+    f2 = mesh.add_polygon([v, ring[2], ring[3]])
+    f3 = mesh.add_polygon([v, ring[4], ring[5]])
+    wire = mesh.add_edge(v, mesh.add_vertex((0, -1, 0)))
+    made = mesh.separate_nonmanifold_vertices()
+    assert list(made) == [v] and len(made[v]) == 2
+    assert v in wire.vertices(), "wire edges stay at the vertex"
+    corners = {p: p.vertices()[0] for p in (f1, f2, f3)}
+    assert len(set(corners.values())) == 3 and v in corners.values()
+    assert mesh.stats().pinched_vertices == 0 and mesh.check() == []
+
+
+def test_separate_rolled_back_with_its_block(store):
+    xyz = [(0, 0, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 0), (1, -1, 0)]
+    mesh = store.import_arrays("bowtie", xyz, [[0, 1, 2], [0, 3, 4]]).mesh
+    before = dump(store)
+    with pytest.raises(RuntimeError):
+        with store.transaction():
+            assert len(mesh.separate_nonmanifold_vertices()) == 1
+            assert mesh.stats().pinched_vertices == 0
+            raise RuntimeError
+    assert dump(store) == before and mesh.stats().pinched_vertices == 1

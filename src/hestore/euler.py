@@ -32,7 +32,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from hestore.errors import EulerError, HalfEdgeNotFreeError, InvalidInputError, PolicyError
-from hestore.kernel import adjust_outgoing, check_policy, describe, edges_between, polygon_loop, target, unlink
+from hestore.kernel import adjust_outgoing, check_policy, describe, edges_between, fans, polygon_loop, target, unlink
 from hestore.unitofwork import EDGE, NEXT, ORIGIN, POLYGON, PREV, TWIN, UnitOfWork
 
 __all__ = [
@@ -54,6 +54,7 @@ __all__ = [
     "check_fill_hole",
     "triangulate_polygon",
     "check_triangulate_polygon",
+    "separate_fans",
 ]
 
 
@@ -761,3 +762,45 @@ def triangulate_polygon(uow: UnitOfWork, p: int) -> list[int]:
     uow.derive("polygon", [(q, "copy", (p,)) for q in triangles[1:]])
     uow.derive("halfedge", corner_plan)
     return triangles
+
+
+# -- separate_fans ----------------------------------------------------------------
+
+
+def separate_fans(uow: UnitOfWork, v: int) -> list[int]:
+    """Give every polygon fan at ``v`` but the first a vertex of its own; return the new vertices.
+
+    A fan is a run of outgoing half-edges between two free wedges (`fans`);
+    it holds polygons unless it is a lone wire edge, which stays at ``v``.
+    Each fan that moves is cut out of ``v``'s rotation at its two free
+    wedges and closed on itself, so no polygon changes; the new vertex takes
+    ``v``'s position and values. Nothing happens at a vertex with one fan.
+    """
+    uow.load(stars=(v,))
+    if uow.vhe(v) is None:
+        return []
+    made: list[int] = []
+    xyz = None
+    while True:
+        polygonal = [f for f in fans(uow, v) if any(uow.he(o)[POLYGON] is not None for o in f)]
+        if len(polygonal) < 2:
+            break
+        fan = polygonal[-1]
+        # The free wedge before the fan ends the previous one; the one after it starts the next.
+        before = uow.he(fan[0])[PREV]
+        after_last = uow.he(uow.he(fan[-1])[TWIN])[NEXT]
+        if not made:
+            xyz = uow.positions((v,)).get(v)
+        w = uow.new_vertex(xyz)
+        uow.link(before, after_last)
+        uow.link(uow.he(fan[-1])[TWIN], fan[0])
+        for o in fan:
+            uow.set_origin(o, w)
+        uow.set_vhe(w, fan[0])
+        if uow.vhe(v) in fan:
+            uow.set_vhe(v, after_last)
+        adjust_outgoing(uow, v)
+        adjust_outgoing(uow, w)
+        made.append(w)
+    uow.derive("vertex", [(w, "copy", (v,)) for w in made])
+    return made

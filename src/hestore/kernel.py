@@ -53,6 +53,7 @@ __all__ = [
     "polygon_loop",
     "adjust_outgoing",
     "unlink",
+    "fans",
 ]
 
 
@@ -269,7 +270,7 @@ def add_polygon(uow: UnitOfWork, loop: Sequence[int]) -> int:
     return p
 
 
-def _fans(uow: UnitOfWork, v: int) -> list[list[int]]:
+def fans(uow: UnitOfWork, v: int) -> list[list[int]]:
     """The fans around ``v``: runs of outgoing half-edges joined by polygons.
 
     Consecutive outgoing half-edges ``o`` and ``next(twin(o))`` are in one fan
@@ -312,9 +313,9 @@ def _arrange_fans(uow: UnitOfWork, corners: list[tuple[int, int]]) -> None:
         at.setdefault(uow.he(nxt)[ORIGIN], []).append((h, nxt))
     links: list[tuple[int, int]] = []
     for v, vcorners in at.items():
-        fans = _fans(uow, v)
-        ending = {fan[-1]: i for i, fan in enumerate(fans)}
-        starting = {fan[0]: i for i, fan in enumerate(fans)}
+        around = fans(uow, v)
+        ending = {fan[-1]: i for i, fan in enumerate(around)}
+        starting = {fan[0]: i for i, fan in enumerate(around)}
         succ: dict[int, int] = {}
         pred: dict[int, int] = {}
         for h, nxt in vcorners:
@@ -323,7 +324,7 @@ def _arrange_fans(uow: UnitOfWork, corners: list[tuple[int, int]]) -> None:
                 raise _complex_vertex(uow, h, nxt)
             succ[a], pred[b] = b, a
         order: list[int] = []
-        for i in range(len(fans)):
+        for i in range(len(around)):
             if i not in pred:
                 while i is not None:
                     order.append(i)
@@ -333,12 +334,12 @@ def _arrange_fans(uow: UnitOfWork, corners: list[tuple[int, int]]) -> None:
             while not (order and i == 0):
                 order.append(i)
                 i = succ[i]
-        if len(order) < len(fans):
-            # Some fans lie on a cycle of constraints that is not the whole vertex.
+        if len(order) < len(around):
+            # Some around lie on a cycle of constraints that is not the whole vertex.
             raise _complex_vertex(uow, *vcorners[0])
         for k, i in enumerate(order):
-            after = fans[order[(k + 1) % len(order)]]
-            links.append((uow.he(fans[i][-1])[TWIN], after[0]))
+            after = around[order[(k + 1) % len(order)]]
+            links.append((uow.he(around[i][-1])[TWIN], after[0]))
     for a, b in links:
         uow.link(a, b)
 

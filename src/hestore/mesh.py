@@ -762,6 +762,40 @@ class Mesh:
         """Whether `triangulate_polygon` would succeed; nothing is written and no lock is taken."""
         return self._can(euler.check_triangulate_polygon, self._own(p, Polygon))
 
+    def separate_nonmanifold_vertices(self) -> dict[Vertex, list[Vertex]]:
+        """Give each polygon fan of every pinched vertex a vertex of its own, in one transaction.
+
+        A pinched vertex is one where more than one fan of polygons meets
+        (`Stats.pinched_vertices`). Its first fan, and any wire edges, stay;
+        every other fan moves to a new vertex with the same position and
+        property values. No polygon, edge or half-edge changes; afterwards
+        ``stats().pinched_vertices`` is 0.
+
+        Returns
+        -------
+        dict
+            Each pinched vertex, with the vertices made for its other fans.
+
+        Examples
+        --------
+        Two triangles meeting only at vertex 0 (a "bowtie") come apart:
+
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> xyz = [(0, 0, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 0), (1, -1, 0)]
+        >>> mesh = store.import_arrays("bowtie", xyz, [[0, 1, 2], [0, 3, 4]]).mesh
+        >>> mesh.separate_nonmanifold_vertices()
+        {Vertex(0): [Vertex(5)]}
+        >>> mesh.vertex(5).position, mesh.stats().pinched_vertices, mesh.stats().components
+        ((0.0, 0.0, 0.0), 0, 2)
+        """
+        pinched = summary.pinched_vertices(self)
+        if not pinched:
+            return {}
+        with self._edit() as uow:
+            made = {v: euler.separate_fans(uow, v) for v in pinched}
+        return {Vertex(self, v): [Vertex(self, w) for w in ws] for v, ws in made.items() if ws}
+
     # -- positions and properties -------------------------------------------
 
     def _element(self, handle: object, kind: type) -> int:

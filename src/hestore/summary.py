@@ -54,7 +54,7 @@ from hestore.handles import HalfEdge, Vertex
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["Stats", "stats", "boundary_loops", "components"]
+__all__ = ["Stats", "stats", "boundary_loops", "components", "pinched_vertices"]
 
 _I64 = np.int64
 
@@ -290,6 +290,42 @@ def _component_roots(n: int, u: np.ndarray, w: np.ndarray) -> np.ndarray:
 # The summaries
 
 
+def _fans(t: _Tables, free: np.ndarray, out_degree: np.ndarray) -> np.ndarray:
+    """The number of polygon fans at each vertex (by row).
+
+    By V_ROTATION, rotating h -> next(twin(h)) is one cycle through every
+    outgoing half-edge of the vertex, and the corner at h is linked to the
+    next one exactly when edge(h) has polygons on both sides. The links cut
+    the cycle into runs, so a vertex has (corners - links) fans, or one
+    closed fan when every outgoing half-edge is linked. No walk is needed.
+    """
+    n_v = len(out_degree)
+    corner = ~free
+    linked = corner & ~free[t.twin]
+    corners = np.bincount(t.origin[corner], minlength=n_v)
+    links = np.bincount(t.origin[linked], minlength=n_v)
+    return np.where((links == out_degree) & (out_degree > 0), 1, corners - links)
+
+
+def pinched_vertices(mesh: "Mesh") -> list[int]:
+    """Ids of the vertices where more than one polygon fan meets (`Stats.pinched_vertices` counts them).
+
+    Examples
+    --------
+    Two triangles meeting only at vertex 0 (a "bowtie"):
+
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> xyz = [(0, 0, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 0), (1, -1, 0)]
+    >>> mesh = store.import_arrays("bowtie", xyz, [[0, 1, 2], [0, 3, 4]]).mesh
+    >>> pinched_vertices(mesh)
+    [0]
+    """
+    t = _read(mesh, sides=True, links=True)
+    out_degree = np.bincount(t.origin, minlength=len(t.v_id))
+    return t.v_id[_fans(t, t.polygon < 0, out_degree) > 1].tolist()
+
+
 def stats(mesh: "Mesh") -> Stats:
     """Counts and topological invariants of a mesh, set-based: `Mesh.stats`.
 
@@ -358,17 +394,7 @@ def stats(mesh: "Mesh") -> Stats:
     roots = _component_roots(n_v, u, w)
     n_components = int(np.count_nonzero(roots == np.arange(n_v)))
 
-    # Fans: by V_ROTATION, rotating h -> next(twin(h)) is one cycle through
-    # every outgoing half-edge of the vertex, and the corner at h is linked to
-    # the next one exactly when edge(h) has polygons on both sides. The links
-    # cut the cycle into runs, so a vertex has (corners - links) fans, or one
-    # closed fan when every outgoing half-edge is linked. No walk is needed.
-    corner = ~free
-    linked = corner & ~free[t.twin]
-    corners = np.bincount(t.origin[corner], minlength=n_v)
-    links = np.bincount(t.origin[linked], minlength=n_v)
-    fans = np.where((links == out_degree) & (out_degree > 0), 1, corners - links)
-    pinched = int(np.count_nonzero(fans > 1))
+    pinched = int(np.count_nonzero(_fans(t, free, out_degree) > 1))
 
     chi = n_v - n_e + n_p
     genus = None
