@@ -24,7 +24,7 @@ import pytest
 import hestore
 from hestore import MeshNotFoundError, Stats
 from hestore.arrays import cycle_positions as _cycle_positions
-from hestore.summary import _component_roots
+from hestore.arrays import component_roots
 
 from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, TETRAHEDRON, build_faces, grid
 from meshes import require_shared_meshes
@@ -410,7 +410,7 @@ def test_component_roots_match_networkx():
     rng = np.random.default_rng(7)
     for n, m in [(1, 0), (2, 1), (50, 30), (400, 380), (400, 1200), (2000, 1990)]:
         u, w = rng.integers(0, n, m), rng.integers(0, n, m)
-        roots = _component_roots(n, u, w)
+        roots = component_roots(n, u, w)
         graph = nx.Graph()
         graph.add_nodes_from(range(n))
         graph.add_edges_from(zip(u.tolist(), w.tolist()))
@@ -423,7 +423,7 @@ def test_component_roots_on_a_path_labelled_in_the_worst_order():
     # would need a round per vertex; hooking and pointer jumping do not
     n = 20001
     order = np.r_[np.arange(0, n, 2), np.arange(1, n, 2)[::-1]]
-    roots = _component_roots(n, order[:-1], order[1:])
+    roots = component_roots(n, order[:-1], order[1:])
     assert (roots == 0).all()
 
 

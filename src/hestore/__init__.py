@@ -21,6 +21,7 @@ vocabulary, and analysed with networkx.
 from hestore.errors import (
     ElementNotFoundError,
     EulerError,
+    NonOrientableError,
     RevisionNotFoundError,
     HalfEdgeNotFreeError,
     HestoreError,
@@ -77,6 +78,7 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "EulerError",
+    "NonOrientableError",
     "RevisionNotFoundError",
     "InvariantViolationError",
     "StoreError",

@@ -48,6 +48,7 @@ __all__ = [
     "ragged",
     "Index",
     "cycles",
+    "component_roots",
     "cycle_positions",
     "run_starts",
     "run_heads",
@@ -378,6 +379,47 @@ def cycle_positions(f: np.ndarray, label: np.ndarray) -> np.ndarray:
         succ = jumped
     length = np.bincount(label, minlength=n)[label]
     return length - 1 - to_end
+
+
+def component_roots(n: int, u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """For each of ``n`` vertices, the smallest vertex of its connected component.
+
+    Vectorised union-find on the edges ``u[i] -- w[i]``. The forest is kept
+    flat (every vertex points at its root); each round hooks every root onto
+    the smallest root next to its tree, when that is smaller, then flattens
+    again by pointer jumping. A root no tree hooks onto in one round is next
+    to a tree that has meanwhile hooked onto a smaller root, so it hooks in
+    the next round: every tree merges with another within two rounds, and the
+    rounds are at most ``2 log2 n``. Hooking only downwards never makes a
+    cycle, and the smallest vertex of a component is never hooked, so it ends
+    as the root.
+
+    Examples
+    --------
+    >>> component_roots(5, np.array([4, 1]), np.array([2, 3])).tolist()
+    [0, 1, 2, 1, 2]
+    """
+    parent = np.arange(n, dtype=I64)
+    keep = u != w
+    u, w = u[keep], w[keep]
+    while len(u):
+        pu, pw = parent[u], parent[w]
+        across = pu != pw
+        # An edge inside one tree stays inside it: drop it for good.
+        u, w, pu, pw = u[across], w[across], pu[across], pw[across]
+        if not len(u):
+            break
+        np.minimum.at(parent, np.maximum(pu, pw), np.minimum(pu, pw))
+        while True:
+            grand = parent[parent]
+            if np.array_equal(grand, parent):
+                break
+            parent = grand
+    return parent
+
+
+# --------------------------------------------------------------------------
+# The summaries
 
 
 def run_starts(*sorted_keys: np.ndarray) -> np.ndarray:

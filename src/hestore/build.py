@@ -41,10 +41,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hestore.arrays import Ragged, TopologyArrays, cyclic_next, ragged, run_heads, run_starts
+from hestore.arrays import Ragged, TopologyArrays, component_roots, cyclic_next, ragged, run_heads, run_starts
 from hestore.errors import HalfEdgeNotFreeError, InvalidInputError, NonManifoldError, PolicyError, VertexNotFreeError
 
-__all__ = ["Refusal", "Built", "build"]
+__all__ = ["Refusal", "Built", "build", "Orientation", "orient"]
 
 _I64 = np.int64
 
@@ -105,6 +105,73 @@ def _corners(n_vertices: int, soup: Ragged, keep: np.ndarray | None = None) -> _
     loop = a == b
     slot = (lo * max(n_vertices, 1) + hi) * 2 + (a > b)
     return _Corners(poly, a, b, slot, loop)
+
+
+class Orientation(NamedTuple):
+    """How `orient` turns a soup's polygons.
+
+    Attributes
+    ----------
+    flip : ndarray of bool
+        Per polygon: reversed.
+    order : ndarray of int
+        Per corner of the oriented soup, the corner of the input it comes
+        from (a reversed polygon keeps its first corner and runs the others
+        backwards), for corner data to follow.
+    conflict : int or None
+        A polygon of a component that cannot be oriented, or None.
+    """
+
+    flip: np.ndarray
+    order: np.ndarray
+    conflict: int | None
+
+
+def orient(polygons) -> Orientation:
+    """Decide which polygons to reverse so that each component is consistently oriented.
+
+    Two polygons sharing an edge used by exactly two polygons agree when they
+    run it in opposite directions. The choices form a signed graph; its
+    double cover (polygon ``p`` unreversed is node ``2p``, reversed
+    ``2p + 1``) is split into components set-based (`component_roots`). A
+    component is non-orientable exactly when some ``2p`` and ``2p + 1`` fall
+    together; otherwise the lowest polygon of each component keeps its
+    orientation and the others follow it. Edges with more than two uses and
+    self-loops decide nothing (the builder refuses what it cannot take).
+
+    Examples
+    --------
+    >>> o = orient([[0, 1, 2], [1, 2, 3], [3, 2, 4]])   # the second runs 1→2 like the first
+    >>> o.flip.tolist(), o.order.tolist(), o.conflict
+    ([False, True, True], [0, 1, 2, 3, 5, 4, 6, 8, 7], None)
+    """
+    soup = ragged(polygons)
+    offsets, idx = soup.offsets, soup.indices
+    n_p = len(offsets) - 1
+    degree = np.diff(offsets)
+    poly = np.repeat(np.arange(n_p, dtype=_I64), degree)
+    start = np.zeros(len(idx), dtype=bool)
+    start[offsets[:-1][degree > 0]] = True
+    a, b = idx, idx[cyclic_next(start)] if len(idx) else idx
+    use = np.flatnonzero(a != b)
+    lo, hi, forward, owner = np.minimum(a, b)[use], np.maximum(a, b)[use], (a < b)[use], poly[use]
+    order = np.lexsort((owner, hi, lo))
+    lo, hi, forward, owner = lo[order], hi[order], forward[order], owner[order]
+    first = np.flatnonzero(run_starts(lo, hi))
+    count = np.diff(np.r_[first, len(lo)])
+    pair = first[(count == 2)]
+    pair = pair[owner[pair] != owner[pair + 1]]
+    p, q = owner[pair], owner[pair + 1]
+    same = (forward[pair] == forward[pair + 1]).astype(_I64)  # same direction: one of the two must turn
+    u = np.r_[2 * p, 2 * p + 1]
+    w = np.r_[2 * q + same, 2 * q + 1 - same]
+    roots = component_roots(2 * n_p, u, w)
+    stuck = np.flatnonzero(roots[0::2] == roots[1::2])
+    flip = roots[0::2] > roots[1::2]
+    local = np.arange(len(idx), dtype=_I64) - offsets[:-1][poly]
+    turned = flip[poly] & (local > 0)
+    src = offsets[:-1][poly] + np.where(turned, degree[poly] - local, local)
+    return Orientation(flip, src, int(stuck[0]) if len(stuck) else None)
 
 
 def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: int = 0) -> Built:

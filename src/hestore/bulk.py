@@ -44,7 +44,7 @@ from hestore.arrays import (
     ragged,
 )
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, MeshExistsError, TopologyError
+from hestore.errors import InvalidInputError, MeshExistsError, NonOrientableError, TopologyError
 from hestore.unitofwork import BulkRows, BulkValues
 from hestore.values import Property
 
@@ -89,6 +89,9 @@ class ImportReport:
     properties : list of Property
         The properties the file's data became (PLY vertex and face
         properties, OBJ corner ``uv`` and ``normal``).
+    flipped : list of int
+        With ``orient=True``: the input polygons that were reversed, in
+        input order (their corner data reversed with them).
     """
 
     mesh: "Mesh"
@@ -98,6 +101,7 @@ class ImportReport:
     skipped: list = field(default_factory=list)
     source: str | None = None
     properties: list = field(default_factory=list)
+    flipped: list = field(default_factory=list)
 
     def summary(self, limit: int = 20) -> str:
         """A few lines for people: counts, then up to ``limit`` skipped polygons."""
@@ -107,6 +111,9 @@ class ImportReport:
         lines = [head]
         if self.properties:
             lines.append("properties: " + ", ".join(map(_described, self.properties)))
+        if self.flipped:
+            shown = ", ".join(map(str, self.flipped[:limit])) + (", ..." if len(self.flipped) > limit else "")
+            lines.append(f"reversed {len(self.flipped)} polygon(s) to orient every component consistently: {shown}")
         if self.skipped:
             lines.append(f"skipped {len(self.skipped)} polygon(s) the half-edge structure cannot take:")
             lines.extend(f"  {s}" for s in self.skipped[:limit])
@@ -177,6 +184,7 @@ def import_arrays(
     allow_multi_edges: bool = True,
     progress: Progress | None = None,
     replace: bool = False,
+    orient: bool = False,
 ) -> ImportReport:
     """Store a polygon soup as a new mesh, built set-based.
 
@@ -209,6 +217,13 @@ def import_arrays(
     replace : bool
         Replace a mesh of that name, in the same transaction as the import:
         the old mesh goes only if the new one is stored.
+    orient : bool
+        Reverse polygons, before building, so that each component is
+        consistently oriented where it can be (`hestore.build.orient`: the
+        lowest polygon of each component keeps its orientation); the
+        reversed ones are in ``report.flipped``. A component that cannot be
+        oriented (a Möbius strip) raises `NonOrientableError` naming a
+        polygon, and nothing is stored.
 
     Returns
     -------
@@ -235,16 +250,19 @@ def import_arrays(
     (1, 1)
     """
     _check_on_error(on_error)
-    _check_replace(replace)
+    _check_flags(replace=replace, orient=orient)
     if not replace:
         _check_name(store, name)
     pos, soup = _as_positions(positions), ragged(polygons)
-    return _import(store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace)
+    return _import(
+        store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace, orient=orient
+    )
 
 
-def _check_replace(replace: object) -> None:
-    if not isinstance(replace, bool):
-        raise InvalidInputError(f"replace is True or False, not {replace!r}")
+def _check_flags(**flags: object) -> None:
+    for name, value in flags.items():
+        if not isinstance(value, bool):
+            raise InvalidInputError(f"{name} is True or False, not {value!r}")
 
 
 def _check_name(store: "Store", name: str) -> None:
@@ -302,10 +320,25 @@ def _file_properties(data: FileData, built, soup: Ragged, source: str | None) ->
 def _import(
     store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *,
     lines=None, source=None, index_base=0, data: FileData | None = None, replace: bool = False,
+    orient: bool = False,
 ):
     """Decide, then write: nothing is stored unless every check has passed."""
     if progress is not None:
         progress("build", 0, 1)
+    flipped: list = []
+    if orient:
+        turn = _build.orient(soup)
+        if turn.conflict is not None:
+            where = f"line {int(lines[turn.conflict])}, " if lines is not None else ""
+            prefix = f"{source}: " if source else ""
+            raise NonOrientableError(
+                f"{prefix}polygon {turn.conflict} ({where}input order) is in a component that cannot be oriented "
+                f"consistently (a Möbius strip or the like); nothing was stored"
+            )
+        soup = Ragged(soup.offsets, soup.indices[turn.order])
+        if data is not None and data.corner:
+            data = data._replace(corner={k: v[turn.order] for k, v in data.corner.items()})
+        flipped = np.flatnonzero(turn.flip).tolist()
     built = _build.build(len(pos), soup, allow_loops=allow_loops, index_base=index_base)
     if progress is not None:
         progress("build", 1, 1)
@@ -321,7 +354,9 @@ def _import(
     columns = _file_properties(data, built, soup, source) if data is not None else []
     mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace)
     declared = [spec for spec, _, _ in columns]
-    return ImportReport(mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared)
+    return ImportReport(
+        mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared, flipped
+    )
 
 
 def _write(
@@ -374,6 +409,7 @@ def import_file(
     allow_multi_edges: bool = True,
     progress: Progress | None = None,
     replace: bool = False,
+    orient: bool = False,
 ) -> ImportReport:
     """Import an OFF, OBJ or PLY file (ASCII or binary) as a new mesh.
 
@@ -389,7 +425,7 @@ def import_file(
         The file; its format comes from its extension.
     name : str, optional
         The new mesh's name; by default the file name without extension.
-    on_error, allow_loops, allow_multi_edges, progress, replace
+    on_error, allow_loops, allow_multi_edges, progress, replace, orient
         As for `import_arrays`.
 
     Returns
@@ -417,7 +453,7 @@ def import_file(
     kind = mesh_io.format_of(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
-    _check_replace(replace)
+    _check_flags(replace=replace, orient=orient)
     if not replace:
         _check_name(store, name)
     read_progress = None
@@ -438,6 +474,7 @@ def import_file(
         index_base=1 if kind == "obj" else 0,  # OBJ counts vertices from 1; say so in messages
         data=FileData(soup.vertex_properties, soup.polygon_properties, soup.corner_properties),
         replace=replace,
+        orient=orient,
     )
 
 

@@ -7,7 +7,7 @@ dispatches, and turns every error a user can cause (hestore's own, an
 unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
-Commands: ``demo``, ``import FILE [--replace]``, ``export NAME FILE``, ``list``,
+Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE``, ``list``,
 ``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``,
 ``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
 components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, through
@@ -99,7 +99,9 @@ def _cmd_import(args: argparse.Namespace) -> int:
         replacing = args.replace and name in store.meshes()
         try:
             with ProgressBar(units=_IMPORT_UNITS) as bar:
-                report = store.import_file(path, args.name, on_error=args.on_error, progress=bar, replace=args.replace)
+                report = store.import_file(
+                    path, args.name, on_error=args.on_error, progress=bar, replace=args.replace, orient=args.orient
+                )
         except MeshExistsError:
             return _error(
                 f"a mesh named {name!r} already exists in {urls.shown(store.url)}; "
@@ -537,6 +539,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="what to do with a polygon the half-edge structure cannot take: raise (the default) "
         "stops with an error naming it and stores nothing; skip stores the mesh without it "
         "and lists it in the report",
+    )
+    imp.add_argument(
+        "--orient",
+        action="store_true",
+        help="reverse polygons so that each component is consistently oriented (reported); a component that "
+        "cannot be oriented (a Moebius strip) is an error and nothing is stored",
     )
     imp.add_argument(
         "--replace",

@@ -51,6 +51,7 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "EulerError",
+    "NonOrientableError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
@@ -178,6 +179,10 @@ class VertexNotFreeError(TopologyError):
 
 class PolicyError(TopologyError):
     """The mesh's policy forbids self-loops or parallel edges."""
+
+
+class NonOrientableError(TopologyError):
+    """Polygons cannot be oriented consistently: a component of the soup is non-orientable (a Möbius strip)."""
 
 
 class EulerError(TopologyError):

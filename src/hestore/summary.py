@@ -48,7 +48,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.arrays import Index, cycle_positions, cycles, dense, groups
+from hestore.arrays import Index, component_roots, cycle_positions, cycles, dense, groups
 from hestore.handles import HalfEdge, Vertex
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -254,42 +254,6 @@ def _free_cycles(free: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndar
     return rows, f, label, on_cycle
 
 
-def _component_roots(n: int, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """For each of ``n`` vertices, the smallest vertex of its connected component.
-
-    Vectorised union-find on the edges ``u[i] -- w[i]``. The forest is kept
-    flat (every vertex points at its root); each round hooks every root onto
-    the smallest root next to its tree, when that is smaller, then flattens
-    again by pointer jumping. A root no tree hooks onto in one round is next
-    to a tree that has meanwhile hooked onto a smaller root, so it hooks in
-    the next round: every tree merges with another within two rounds, and the
-    rounds are at most ``2 log2 n``. Hooking only downwards never makes a
-    cycle, and the smallest vertex of a component is never hooked, so it ends
-    as the root.
-    """
-    parent = np.arange(n, dtype=_I64)
-    keep = u != w
-    u, w = u[keep], w[keep]
-    while len(u):
-        pu, pw = parent[u], parent[w]
-        across = pu != pw
-        # An edge inside one tree stays inside it: drop it for good.
-        u, w, pu, pw = u[across], w[across], pu[across], pw[across]
-        if not len(u):
-            break
-        np.minimum.at(parent, np.maximum(pu, pw), np.minimum(pu, pw))
-        while True:
-            grand = parent[parent]
-            if np.array_equal(grand, parent):
-                break
-            parent = grand
-    return parent
-
-
-# --------------------------------------------------------------------------
-# The summaries
-
-
 def _fans(t: _Tables, free: np.ndarray, out_degree: np.ndarray) -> np.ndarray:
     """The number of polygon fans at each vertex (by row).
 
@@ -391,7 +355,7 @@ def stats(mesh: "Mesh") -> Stats:
     free_rows, _, label, on_cycle = _free_cycles(free, t.next)
     n_loops = int(np.count_nonzero(on_cycle & (label == np.arange(len(free_rows)))))
 
-    roots = _component_roots(n_v, u, w)
+    roots = component_roots(n_v, u, w)
     n_components = int(np.count_nonzero(roots == np.arange(n_v)))
 
     pinched = int(np.count_nonzero(_fans(t, free, out_degree) > 1))
@@ -504,7 +468,7 @@ def components(mesh: "Mesh") -> list[set[Vertex]]:
     """
     t = _read(mesh, sides=False, links=True)
     rep = np.flatnonzero(np.arange(len(t.he_id)) < t.twin)
-    roots = _component_roots(len(t.v_id), t.origin[rep], t.origin[t.twin[rep]])
+    roots = component_roots(len(t.v_id), t.origin[rep], t.origin[t.twin[rep]])
     order, bounds = groups(roots)
     ids = t.v_id[order].tolist()
     bounds = bounds.tolist()
