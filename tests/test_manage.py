@@ -22,6 +22,7 @@ from hestore.errors import (
 )
 
 from helpers import dump
+from meshes import require_shared_meshes
 
 TRI = ([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]])
 
@@ -271,7 +272,11 @@ def test_cli_refusals_are_one_line_and_change_nothing(capsys, db_url, argv, word
 
 # -- the dual -------------------------------------------------------------------
 
-MESHES = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+@pytest.fixture
+def meshes():
+    return require_shared_meshes()
 
 
 def _octahedron(store, name="octa"):
@@ -301,8 +306,8 @@ def test_dual_of_an_octahedron_is_a_cube_with_centroids_and_orientation(store):
     assert octa.counts() == hestore.mesh.Counts(6, 24, 12, 8)  # the source is untouched
 
 
-def test_dual_of_cube1_matches_the_peers_counts_and_dual_of_dual(store):
-    mesh = store.import_file(MESHES / "cube1.off").mesh
+def test_dual_of_cube1_matches_the_peers_counts_and_dual_of_dual(store, meshes):
+    mesh = store.import_file(meshes / "cube1.off").mesh
     dual = mesh.dual("cube1-dual").mesh
     c = dual.counts()
     assert (c.vertices, c.edges, c.polygons) == (15048, 22572, 7526)

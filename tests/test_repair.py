@@ -22,8 +22,13 @@ from hestore.build import orient
 from hestore.errors import InvalidInputError, NonOrientableError, TopologyError
 
 from helpers import dump
+from meshes import require_shared_meshes
 
-MESHES = pathlib.Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+@pytest.fixture
+def meshes() -> pathlib.Path:
+    return require_shared_meshes()
 
 
 def cycles_of(mesh) -> set[tuple[int, ...]]:
@@ -42,8 +47,8 @@ def canon(cycle, reverse=False) -> tuple[int, ...]:
     return tuple(vs[i:] + vs[:i])
 
 
-def test_cube_shuffled_becomes_a_closed_cube(store):
-    path = MESHES / "cube-shuffled.off"
+def test_cube_shuffled_becomes_a_closed_cube(store, meshes):
+    path = meshes / "cube-shuffled.off"
     with pytest.raises(TopologyError):
         store.import_file(path)  # mis-wound: refused without the repair
     report = store.import_file(path, orient=True)
@@ -58,21 +63,21 @@ def test_cube_shuffled_becomes_a_closed_cube(store):
     assert cycles_of(mesh) == expected
 
 
-def test_a_moebius_strip_cannot_be_oriented_and_nothing_is_stored(store):
+def test_a_moebius_strip_cannot_be_oriented_and_nothing_is_stored(store, meshes):
     store.create_mesh("keep")
     before = dump(store)
     for on_error in ("raise", "skip"):
         with pytest.raises(NonOrientableError) as info:
-            store.import_file(MESHES / "moebius.obj", orient=True, on_error=on_error)
+            store.import_file(meshes / "moebius.obj", orient=True, on_error=on_error)
         assert isinstance(info.value, TopologyError) and "polygon 0" in str(info.value)
         assert "moebius.obj" in str(info.value) and "nothing was stored" in str(info.value)
     assert dump(store) == before
 
 
 @pytest.mark.parametrize("name", ["cube1.off", "sphere840.ply", "quadknot.obj"])
-def test_a_consistent_file_imports_identically_with_orient(store, name):
-    plain = store.import_file(MESHES / name, name="plain")
-    oriented = store.import_file(MESHES / name, name="oriented", orient=True)
+def test_a_consistent_file_imports_identically_with_orient(store, name, meshes):
+    plain = store.import_file(meshes / name, name="plain")
+    oriented = store.import_file(meshes / name, name="oriented", orient=True)
     assert oriented.flipped == [] and "reversed" not in oriented.summary()
     a, b = plain.mesh.to_arrays(), oriented.mesh.to_arrays()
     assert np.array_equal(np.asarray(a.polygons), np.asarray(b.polygons))
@@ -138,11 +143,11 @@ def test_random_soup_imports_closed_on_both_databases(store):
         assert report.flipped == [i for i in range(8) if flips[i] != flips[0]]
 
 
-def test_cli_import_orient(capsys, db_url):
-    code = cli.main(["--db", db_url, "import", str(MESHES / "cube-shuffled.off"), "--orient"])
+def test_cli_import_orient(capsys, db_url, meshes):
+    code = cli.main(["--db", db_url, "import", str(meshes / "cube-shuffled.off"), "--orient"])
     out, err = capsys.readouterr()
     assert code == 0 and "reversed" in out and "polygon(s) to orient" in out
-    code = cli.main(["--db", db_url, "import", str(MESHES / "moebius.obj"), "--orient"])
+    code = cli.main(["--db", db_url, "import", str(meshes / "moebius.obj"), "--orient"])
     out, err = capsys.readouterr()
     assert code == 2 and out == "" and "cannot be oriented" in err and err.count("\n") == 1
     with hestore.open(db_url) as store:
