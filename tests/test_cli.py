@@ -452,7 +452,7 @@ def test_import_under_an_existing_name(capsys, db_url, tmp_path):
     "name, content, message",
     [
         pytest.param("missing.off", None, "No such file or directory", id="missing"),
-        pytest.param("mesh.stl", "solid x\n", "unsupported file format '.stl'", id="unknown-extension"),
+        pytest.param("mesh.xyz", "1 2 3\n", "unsupported file format '.xyz'", id="unknown-extension"),
         pytest.param("folder.off", "folder", "Is a directory", id="a-directory"),
     ],
 )
@@ -512,7 +512,7 @@ def test_export_errors_are_one_line(capsys, url, tmp_path):
 
     for argv, message in [
         (["export", "missing", str(tmp_path / "x.off")], "missing"),
-        (["export", "sq", str(tmp_path / "x.stl")], "unsupported file format"),
+        (["export", "sq", str(tmp_path / "x.xyz")], "unsupported file format"),
         (["export", "sq", str(tmp_path / "no" / "such" / "x.off")], "No such file or directory"),
         (["export", "unplaced", str(tmp_path / "x.off")], "no position"),
     ]:

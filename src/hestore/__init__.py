@@ -21,6 +21,7 @@ vocabulary, and analysed with networkx.
 from hestore.errors import (
     ElementNotFoundError,
     EulerError,
+    MissingDependencyError,
     NonOrientableError,
     RevisionNotFoundError,
     HalfEdgeNotFreeError,
@@ -78,6 +79,7 @@ __all__ = [
     "VertexNotFreeError",
     "PolicyError",
     "EulerError",
+    "MissingDependencyError",
     "NonOrientableError",
     "RevisionNotFoundError",
     "InvariantViolationError",

@@ -42,6 +42,7 @@ __all__ = [
     "MeshNotFoundError",
     "PropertyNotFoundError",
     "InvalidInputError",
+    "MissingDependencyError",
     "RevisionNotFoundError",
     "MeshExistsError",
     "TopologyError",
@@ -101,6 +102,10 @@ class RevisionNotFoundError(HestoreError, KeyError):
 
     def __str__(self) -> str:  # KeyError would show the message quoted
         return str(self.args[0]) if self.args else ""
+
+
+class MissingDependencyError(HestoreError, ImportError):
+    """An optional library a call needs (trimesh, meshio) is not installed; the message says what to install."""
 
 
 class InvalidInputError(HestoreError, ValueError):

@@ -12,13 +12,14 @@ identity (`hestore.session.MeshRef`) and policy.
 
 from __future__ import annotations
 
+import os
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, euler, kernel, navigation, properties, schema, summary, validation
+from hestore import bulk, euler, interop, kernel, navigation, properties, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -941,8 +942,23 @@ class Mesh:
         return bulk.to_arrays(self)
 
     def export(self, path, **options) -> None:
-        """Write the mesh to an OFF, OBJ or PLY file; see `hestore.bulk.export`."""
+        """Write the mesh to an OFF, OBJ or PLY file (`hestore.bulk.export`), or STL, VTK, VTU through meshio.
+
+        STL holds triangles only: other polygons are written as fans
+        (`hestore.interop.write_meshio_file`).
+        """
+        if str(os.fspath(path)).lower().endswith(interop.MESHIO_EXTENSIONS):
+            interop.write_meshio_file(self, path)
+            return
         bulk.export(self, path, **options)
+
+    def to_trimesh(self):
+        """The mesh as a ``trimesh.Trimesh`` (needs trimesh); see `hestore.interop.to_trimesh`."""
+        return interop.to_trimesh(self)
+
+    def to_meshio(self):
+        """The mesh as a ``meshio.Mesh`` (needs meshio); see `hestore.interop.to_meshio`."""
+        return interop.to_meshio(self)
 
     # -- validation ---------------------------------------------------------
 

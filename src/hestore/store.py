@@ -12,13 +12,14 @@ A store belongs to the thread that opened it: open one per thread or process.
 from __future__ import annotations
 
 import math
+import os
 import unicodedata
 from contextlib import contextmanager
 from typing import Iterator
 
 import sqlalchemy as sa
 
-from hestore import bulk, schema, urls
+from hestore import bulk, interop, schema, urls
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, RevisionNotFoundError
 from hestore.mesh import Mesh
 from hestore.session import Session
@@ -400,7 +401,21 @@ class Store:
         return bulk.import_arrays(self, _checked_name(name), positions, polygons, on_error=on_error, **options)
 
     def import_file(self, path, name: str | None = None, *, on_error: str = "raise", **options) -> bulk.ImportReport:
-        """Import an OFF, OBJ or PLY file as a new mesh; see `hestore.bulk.import_file`."""
+        """Import an OFF, OBJ or PLY file as a new mesh (`hestore.bulk.import_file`), or STL, VTK, VTU through meshio.
+
+        The meshio formats (`hestore.interop.read_meshio_file`) take the
+        same options; their polygon cells become polygons.
+        """
         if name is not None:
             name = _checked_name(name)
+        if str(os.fspath(path)).lower().endswith(interop.MESHIO_EXTENSIONS):
+            return interop.read_meshio_file(self, path, name, on_error=on_error, **options)
         return bulk.import_file(self, path, name, on_error=on_error, **options)
+
+    def import_trimesh(self, name: str, tm, **options) -> bulk.ImportReport:
+        """Store a ``trimesh.Trimesh`` as a new mesh; see `hestore.interop.import_trimesh`."""
+        return interop.import_trimesh(self, _checked_name(name), tm, **options)
+
+    def import_meshio(self, name: str, m, **options) -> bulk.ImportReport:
+        """Store a ``meshio.Mesh`` of polygon cells as a new mesh; see `hestore.interop.import_meshio`."""
+        return interop.import_meshio(self, _checked_name(name), m, **options)

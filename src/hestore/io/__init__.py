@@ -120,10 +120,10 @@ def format_of(path: str | os.PathLike) -> str:
     --------
     >>> format_of("bunny.OBJ")
     'obj'
-    >>> format_of("bunny.stl")
+    >>> format_of("bunny.xyz")
     Traceback (most recent call last):
     ...
-    hestore.errors.InvalidInputError: bunny.stl: unsupported file format '.stl'; supported: .off, .obj, .ply
+    hestore.errors.InvalidInputError: bunny.xyz: unsupported file format '.xyz'; supported: .off, .obj, .ply (and ...)
     """
     name = os.fsdecode(path)
     ext = os.path.splitext(name)[1]
@@ -131,7 +131,9 @@ def format_of(path: str | os.PathLike) -> str:
     if fmt not in FORMATS:
         supported = ", ".join("." + f for f in FORMATS)
         shown = repr(ext) if ext else "(no extension)"
-        raise InvalidInputError(f"{name}: unsupported file format {shown}; supported: {supported}")
+        raise InvalidInputError(
+            f"{name}: unsupported file format {shown}; supported: {supported} (and .stl, .vtk, .vtu through meshio)"
+        )
     return fmt
 
 

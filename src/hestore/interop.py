@@ -1,0 +1,232 @@
+"""Interop with the mesh libraries users already have: trimesh and meshio (optional extras).
+
+This module owns the conversions between a stored mesh and a
+``trimesh.Trimesh`` or a ``meshio.Mesh``, and the file formats hestore reads
+and writes through meshio (STL, VTK, VTU). Both libraries are optional
+(``pip install "hestore[trimesh]"``, ``"hestore[meshio]"``); without them
+these calls raise `MissingDependencyError` saying what to install.
+
+Everything goes through `hestore.bulk`'s arrays: a mesh leaves as
+`hestore.bulk.to_arrays` gives it (vertices in id order, polygons in id
+order from their ``halfedge``) and comes back through
+`hestore.bulk.import_arrays` (one transaction, the same checks and
+``on_error``). What a library cannot hold is said, never lost silently:
+
+* trimesh holds triangles only: other polygons are cut into fans from their
+  first corner (k − 2 triangles for a k-gon), and ``metadata["polygon"]``
+  maps each triangle to the polygon id it came from;
+* meshio holds polygons of any arity in blocks (``triangle``, ``quad``,
+  ``polygon`` per larger arity): nothing is cut, and reading one back keeps
+  the blocks' order. STL holds triangles only and is written as fans too.
+  Cells that are not polygons (lines, tetrahedra, …) are refused on import
+  with `InvalidInputError` naming their types.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import io
+import os
+import warnings
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hestore import bulk, navigation
+from hestore.errors import InvalidInputError, MissingDependencyError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from hestore.mesh import Mesh
+    from hestore.store import Store
+
+__all__ = [
+    "MESHIO_EXTENSIONS",
+    "to_trimesh",
+    "import_trimesh",
+    "to_meshio",
+    "import_meshio",
+    "read_meshio_file",
+    "write_meshio_file",
+]
+
+#: File extensions read and written through meshio.
+MESHIO_EXTENSIONS = (".stl", ".vtk", ".vtu")
+
+#: meshio's block names for polygons of a fixed arity (larger ones are "polygon").
+_BLOCKS = {3: "triangle", 4: "quad"}
+
+
+def _require(name: str) -> Any:
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        raise MissingDependencyError(
+            f"{name} is not installed: pip install \"hestore[{name}]\" (or pip install {name})"
+        ) from exc
+
+
+def _polygons(mesh: "Mesh") -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
+    """Positions (every vertex positioned), polygons by corner rows, polygon ids, vertex ids."""
+    arrays = bulk.to_arrays(mesh)
+    if len(arrays.positions) and np.isnan(arrays.positions).any():
+        missing = int(arrays.vertex_ids[np.isnan(arrays.positions).any(axis=1)][0])
+        raise InvalidInputError(f"vertex {missing} of mesh {mesh.name!r} has no position: it cannot be exported")
+    polygons = arrays.polygons
+    rows = [np.asarray(p, dtype=np.int64) for p in polygons] if isinstance(polygons, list) else list(polygons)
+    polygon_ids = np.array(navigation.ids(mesh, "polygon"), dtype=np.int64)
+    return arrays.positions, rows, polygon_ids, arrays.vertex_ids
+
+
+def _fans(rows: list[np.ndarray], ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles cutting each polygon into a fan from its first corner, and the polygon id of each."""
+    tris, owner = [], []
+    for pid, row in zip(ids.tolist(), rows):
+        k = len(row)
+        if k < 3:
+            continue
+        tris.append(np.stack([np.full(k - 2, row[0]), row[1:-1], row[2:]], axis=1))
+        owner.append(np.full(k - 2, pid))
+    if not tris:
+        return np.zeros((0, 3), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(tris).astype(np.int64), np.concatenate(owner).astype(np.int64)
+
+
+def to_trimesh(mesh: "Mesh") -> Any:
+    """The mesh as a ``trimesh.Trimesh`` (vertices in id order; non-triangles cut into fans).
+
+    ``metadata["vertex_ids"]`` holds each trimesh vertex's id, and
+    ``metadata["polygon"]`` each face's polygon id. trimesh does not merge or
+    reorder anything (``process=False``). 1-gons and 2-gons have no triangle.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> quad = store.import_arrays("q", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [[0, 1, 2, 3]]).mesh
+    >>> tm = quad.to_trimesh()
+    >>> tm.faces.tolist(), tm.metadata["polygon"].tolist()
+    ([[0, 1, 2], [0, 2, 3]], [0, 0])
+    """
+    trimesh = _require("trimesh")
+    positions, rows, ids, vertex_ids = _polygons(mesh)
+    faces, owner = _fans(rows, ids)
+    tm = trimesh.Trimesh(vertices=positions, faces=faces, process=False)
+    tm.metadata["vertex_ids"] = vertex_ids
+    tm.metadata["polygon"] = owner
+    return tm
+
+
+def import_trimesh(store: "Store", name: str, tm: Any, **options) -> bulk.ImportReport:
+    """Store a ``trimesh.Trimesh`` as a new mesh: vertex ``i`` and face ``j`` in its order.
+
+    ``options`` are `hestore.bulk.import_arrays`'s (``on_error``, ``orient``, …).
+
+    Examples
+    --------
+    >>> import hestore, trimesh
+    >>> store = hestore.open("sqlite://")
+    >>> report = store.import_trimesh("box", trimesh.creation.box())
+    >>> report.polygons, report.mesh.stats().is_closed
+    (12, True)
+    """
+    if not (hasattr(tm, "vertices") and hasattr(tm, "faces")):
+        raise InvalidInputError(f"expected a trimesh.Trimesh, got {type(tm).__name__}")
+    return bulk.import_arrays(store, name, np.asarray(tm.vertices), np.asarray(tm.faces), **options)
+
+
+def _cells(rows: list[np.ndarray]) -> list[tuple[str, np.ndarray]]:
+    """meshio cell blocks: consecutive polygons of one arity share a block, in polygon order."""
+    blocks: list[tuple[str, list]] = []
+    for row in rows:
+        k = len(row)
+        kind = _BLOCKS.get(k, "polygon")
+        if not blocks or blocks[-1][0] != kind or len(blocks[-1][1][0]) != k:
+            blocks.append((kind, []))
+        blocks[-1][1].append(row)
+    return [(kind, np.array(cells, dtype=np.int64)) for kind, cells in blocks]
+
+
+def to_meshio(mesh: "Mesh") -> Any:
+    """The mesh as a ``meshio.Mesh``: every polygon kept, in blocks by arity, in polygon id order.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> xyz = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0)]
+    >>> m = store.import_arrays("m", xyz, [[0, 1, 2, 3], [1, 4, 2]]).mesh.to_meshio()
+    >>> [(c.type, c.data.tolist()) for c in m.cells]
+    [('quad', [[0, 1, 2, 3]]), ('triangle', [[1, 4, 2]])]
+    """
+    meshio = _require("meshio")
+    positions, rows, _ids, _vertex_ids = _polygons(mesh)
+    return meshio.Mesh(positions, [(kind, cells) for kind, cells in _cells([r for r in rows if len(r) >= 3])])
+
+
+def _soup_of(m: Any, what: str) -> tuple[np.ndarray, list]:
+    surface, other = [], []
+    for block in m.cells:
+        if block.type in ("triangle", "quad") or block.type.startswith("polygon"):
+            surface.extend(np.asarray(block.data, dtype=np.int64).tolist())
+        else:
+            other.append(block.type)
+    if other:
+        raise InvalidInputError(
+            f"{what} has cells that are not polygons ({', '.join(sorted(set(other)))}): hestore stores surfaces "
+            f"and graphs of polygons; nothing was stored"
+        )
+    return np.asarray(m.points, dtype=float), surface
+
+
+def import_meshio(store: "Store", name: str, m: Any, **options) -> bulk.ImportReport:
+    """Store a ``meshio.Mesh`` of polygon cells (``triangle``, ``quad``, ``polygon``) as a new mesh.
+
+    Examples
+    --------
+    >>> import hestore, meshio
+    >>> store = hestore.open("sqlite://")
+    >>> m = meshio.Mesh([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [("triangle", [[0, 1, 2]])])
+    >>> store.import_meshio("t", m).polygons
+    1
+    """
+    if not (hasattr(m, "points") and hasattr(m, "cells")):
+        raise InvalidInputError(f"expected a meshio.Mesh, got {type(m).__name__}")
+    points, polygons = _soup_of(m, "the meshio mesh")
+    return bulk.import_arrays(store, name, points, polygons, **options)
+
+
+def read_meshio_file(store: "Store", path, name: str | None = None, **options) -> bulk.ImportReport:
+    """Import an STL, VTK or VTU file through meshio (`hestore.Store.import_file` for those extensions)."""
+    meshio = _require("meshio")
+    path = os.fspath(path)
+    if name is None:
+        name = os.path.splitext(os.path.basename(path))[0]
+    if not os.path.isfile(path):
+        raise FileNotFoundError(2, "No such file or directory", path)
+    said = io.StringIO()
+    try:
+        # meshio prints its complaints and calls sys.exit on a file it cannot
+        # parse, and its STL sniffing overflows harmlessly: keep all of that quiet.
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # many exception types, and SystemExit, for one malformed file
+        why = " ".join(said.getvalue().split()) or str(exc) or type(exc).__name__
+        raise InvalidInputError(f"{path}: meshio cannot read it: {why}") from None
+    points, polygons = _soup_of(m, path)
+    options.pop("progress", None)
+    return bulk.import_arrays(store, name, points, polygons, **options)
+
+
+def write_meshio_file(mesh: "Mesh", path) -> None:
+    """Write an STL (triangles: polygons cut into fans), VTK or VTU file through meshio."""
+    meshio = _require("meshio")
+    path = os.fspath(path)
+    if path.lower().endswith(".stl"):
+        positions, rows, ids, _vertex_ids = _polygons(mesh)
+        faces, _owner = _fans(rows, ids)
+        m = meshio.Mesh(positions, [("triangle", faces)])
+    else:
+        m = to_meshio(mesh)
+    meshio.write(path, m)
