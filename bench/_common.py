@@ -773,3 +773,16 @@ class Statements:
         """Statements per operation, by kind."""
         parts = [f"{k} {counts[k] / n:.3g}" for k in cls.KINDS if counts[k]]
         return f"{sum(counts.values()) / n:.3g} statements: " + ", ".join(parts)
+
+
+def print_profiles(heading: str, profiles: list[tuple[str, str, str]]) -> None:
+    """Print ``(title, heaviest function, cProfile text)`` profiles under ``heading`` (nothing if there are none)."""
+    if not profiles:
+        return
+    print()
+    print(heading)
+    for title, dominant, text in profiles:
+        print(f"  {title}")
+        print(f"    heaviest: {dominant}")
+        for line in text.splitlines():
+            print(f"    {line}")

@@ -102,6 +102,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
+    print_profiles,
     Statements,
     Figure,
     Parser,
@@ -867,14 +868,7 @@ def report(args, backends, grids, setups, results, subdivisions, profiles, skipp
         print(f"SQL statements hestore sent on its driver cursor during one call, on the large grid ({COUNTED} calls "
               "counted in an untimed block through store.session.traced; the writes come at the flush):")
         print_table(["backend", "figure", "statements per call"], srows, "lll")
-    if profiles:
-        print()
-        print("Profiles (cProfile on during the calls only):")
-        for title, dominant, text in profiles:
-            print(f"  {title}")
-            print(f"    heaviest: {dominant}")
-            for line in text.splitlines():
-                print(f"    {line}")
+    print_profiles("Profiles (cProfile on during the calls only):", profiles)
     print()
     print("Correctness and notes:")
     for n in notes:

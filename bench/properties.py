@@ -83,6 +83,7 @@ import numpy as np  # noqa: E402
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
+    print_profiles,
     Figure,
     Parser,
     Runner,
@@ -691,14 +692,7 @@ def report(args, backends, setups, runs, profiles, skipped, errors) -> list[str]
         print()
         print("Floor variants, every one measured (median of the runs; ratio = hestore's time ÷ this variant's):")
         print_table(["figure", "backend", "floor variant", "time", "hestore ÷"], variant_rows, "lllrr")
-    if profiles:
-        print()
-        print("Profiles of the figures over their target:")
-        for title, dominant, text in profiles:
-            print(f"  {title}")
-            print(f"    heaviest: {dominant}")
-            for line in text.splitlines():
-                print(f"    {line}")
+    print_profiles("Profiles of the figures over their target:", profiles)
     print()
     print("Correctness and notes:")
     for n in notes:

@@ -565,13 +565,18 @@ class Model:
         self.cut(ha, hb, (-1, -1, -2, -1), phe)
         return -1
 
-    def join_polygons(self, e: int) -> int:
+    def two_sides(self, e: int) -> tuple[int, int, int, int]:
+        """``(h, t, p, q)``: the edge's half-edges and the two different polygons beside it, or a refusal."""
         _a, _b, h, t = self.edges[e]
         p, q = self.face[h], self.face[t]
         if p is None or q is None:
             raise Refusal(EulerError, "boundary")
         if p == q:
             raise Refusal(EulerError, "same-polygon")
+        return h, t, p, q
+
+    def join_polygons(self, e: int) -> int:
+        h, t, p, q = self.two_sides(e)
         if len(self.polygons[p]) + len(self.polygons[q]) == 2:
             raise Refusal(EulerError, "degenerate")
         merged = self.rotated(p, h)[1:] + self.rotated(q, t)[1:]
@@ -603,12 +608,7 @@ class Model:
         return c
 
     def flip_edge(self, e: int) -> int:
-        _a, _b, h, t = self.edges[e]
-        p, q = self.face[h], self.face[t]
-        if p is None or q is None:
-            raise Refusal(EulerError, "boundary")
-        if p == q:
-            raise Refusal(EulerError, "same-polygon")
+        h, t, p, q = self.two_sides(e)
         if len(self.polygons[p]) != 3 or len(self.polygons[q]) != 3:
             raise Refusal(EulerError, "not-triangle")
         h1, h2, t1, t2 = self.step(h), self.step(h, 2), self.step(t), self.step(t, 2)
