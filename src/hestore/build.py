@@ -36,7 +36,7 @@ The steps (seed 003's twin matching, generalised):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -44,7 +44,7 @@ import numpy as np
 from hestore.arrays import Ragged, TopologyArrays, component_roots, cyclic_next, ragged, run_heads, run_starts
 from hestore.errors import HalfEdgeNotFreeError, InvalidInputError, NonManifoldError, PolicyError, VertexNotFreeError
 
-__all__ = ["Refusal", "Built", "build", "Orientation", "orient"]
+__all__ = ["Refusal", "Built", "build", "separate", "Orientation", "orient"]
 
 _I64 = np.int64
 
@@ -73,11 +73,15 @@ class Built:
         Input indices of the stored polygons, ascending.
     refused : list of Refusal
         Every refused polygon, in input order.
+    copied : ndarray of int
+        With ``split=True``: vertex ``n_vertices + i`` is a copy of input
+        vertex ``copied[i]``.
     """
 
     arrays: TopologyArrays
     accepted: np.ndarray
     refused: list[Refusal]
+    copied: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=_I64))
 
 
 class _Corners(NamedTuple):
@@ -119,15 +123,22 @@ class Orientation(NamedTuple):
         from (a reversed polygon keeps its first corner and runs the others
         backwards), for corner data to follow.
     conflict : int or None
-        A polygon of a component that cannot be oriented, or None.
+        A polygon of a component that cannot be oriented, or None (always
+        None with ``cut=True``).
+    cut : ndarray of int, shape (k, 2)
+        With ``cut=True``: the edges, as vertex pairs, along which the
+        components that cannot be oriented were cut; their two polygons now
+        run them the same way (`build` with ``split=True`` then gives one of
+        them its own copy of a vertex).
     """
 
     flip: np.ndarray
     order: np.ndarray
     conflict: int | None
+    cut: np.ndarray
 
 
-def orient(polygons) -> Orientation:
+def orient(polygons, *, cut: bool = False) -> Orientation:
     """Decide which polygons to reverse so that each component is consistently oriented.
 
     Two polygons sharing an edge used by exactly two polygons agree when they
@@ -139,11 +150,24 @@ def orient(polygons) -> Orientation:
     orientation and the others follow it. Edges with more than two uses and
     self-loops decide nothing (the builder refuses what it cannot take).
 
+    With ``cut=True`` a component that cannot be oriented is oriented along
+    a breadth-first spanning tree of its polygons, from its lowest polygon;
+    the edges where its neighbours then disagree are returned in ``cut``.
+
     Examples
     --------
     >>> o = orient([[0, 1, 2], [1, 2, 3], [3, 2, 4]])   # the second runs 1→2 like the first
     >>> o.flip.tolist(), o.order.tolist(), o.conflict
     ([False, True, True], [0, 1, 2, 3, 5, 4, 6, 8, 7], None)
+
+    A Möbius band of three quads cannot be oriented; cut, one rung is opened:
+
+    >>> band = [[0, 1, 4, 3], [1, 2, 5, 4], [2, 3, 0, 5]]
+    >>> orient(band).conflict
+    0
+    >>> o = orient(band, cut=True)
+    >>> o.flip.tolist(), o.cut.tolist()
+    ([False, False, True], [[2, 5]])
     """
     soup = ragged(polygons)
     offsets, idx = soup.offsets, soup.indices
@@ -168,13 +192,51 @@ def orient(polygons) -> Orientation:
     roots = component_roots(2 * n_p, u, w)
     stuck = np.flatnonzero(roots[0::2] == roots[1::2])
     flip = roots[0::2] > roots[1::2]
+    cut_edges = np.empty((0, 2), dtype=_I64)
+    if cut and len(stuck):
+        inside = roots[2 * p] == roots[2 * p + 1]  # dual edges of the components that cannot be oriented
+        tree = _tree_flips(n_p, p[inside], q[inside], same[inside].astype(bool), np.unique(roots[2 * stuck] // 2))
+        ours = np.zeros(n_p, dtype=bool)
+        ours[stuck] = True
+        flip = np.where(ours, tree, flip)
+        torn = inside.copy()
+        torn[inside] = (flip[p[inside]] ^ flip[q[inside]]) != same[inside].astype(bool)
+        cut_edges = np.column_stack([lo[pair][torn], hi[pair][torn]])
+        stuck = stuck[:0]
     local = np.arange(len(idx), dtype=_I64) - offsets[:-1][poly]
     turned = flip[poly] & (local > 0)
     src = offsets[:-1][poly] + np.where(turned, degree[poly] - local, local)
-    return Orientation(flip, src, int(stuck[0]) if len(stuck) else None)
+    return Orientation(flip, src, int(stuck[0]) if len(stuck) else None, cut_edges)
 
 
-def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: int = 0) -> Built:
+def _tree_flips(n_p: int, p: np.ndarray, q: np.ndarray, differ: np.ndarray, roots: np.ndarray) -> np.ndarray:
+    """Reversals along a breadth-first spanning forest of the dual edges ``p -- q``.
+
+    ``differ`` says that the edge's two polygons must end up reversed
+    differently. The search is level-synchronous, so it costs a few numpy
+    gathers per level (the dual graph's diameter), not a Python step per
+    polygon; each polygon follows the first neighbour that reaches it.
+    """
+    src, dst, par = np.r_[p, q], np.r_[q, p], np.r_[differ, differ]
+    order = np.argsort(src, kind="stable")
+    src, dst, par = src[order], dst[order], par[order]
+    first = np.searchsorted(src, np.arange(n_p + 1))
+    flip = np.zeros(n_p, dtype=bool)
+    seen = np.zeros(n_p, dtype=bool)
+    seen[roots] = True
+    frontier = roots
+    while len(frontier):
+        count = first[frontier + 1] - first[frontier]
+        at = np.repeat(first[frontier] - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+        reach = ~seen[dst[at]]
+        at = at[reach]
+        frontier, pick = np.unique(dst[at], return_index=True)
+        flip[frontier] = flip[src[at[pick]]] ^ par[at[pick]]
+        seen[frontier] = True
+    return flip
+
+
+def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: int = 0, split: bool = False) -> Built:
     """Decide which polygons the structure takes and build the half-edge arrays.
 
     Parameters
@@ -189,11 +251,17 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
     index_base : int
         Added to vertex numbers in refusal reasons (1 for OBJ files, whose
         indices count from 1).
+    split : bool
+        Keep every polygon that is well formed in itself (refuse only an
+        empty one, an index out of range, or a self-loop the policy
+        forbids), giving it its own copies of the vertices where it does not
+        fit; see `separate`.
 
     Returns
     -------
     Built
-        The arrays, the input indices of the polygons kept and every refusal.
+        The arrays, the input indices of the polygons kept, every refusal and
+        the copied vertices.
 
     Examples
     --------
@@ -208,10 +276,30 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
     []
     >>> b.refused[0].index, b.refused[0].error.__name__
     (2, 'HalfEdgeNotFreeError')
+
+    With ``split=True`` the third triangle is kept too, as a triangle of its
+    own on copies of vertices 0, 1 and 2 (vertices 4, 5 and 6), since each of
+    its edges is taken:
+
+    >>> b = build(4, [[0, 1, 2], [0, 2, 3], [0, 1, 2]], split=True)
+    >>> b.accepted.tolist(), b.copied.tolist(), b.refused
+    ([0, 1, 2], [0, 1, 2], [])
     """
     soup = ragged(polygons)
     refused: dict[int, Refusal] = {}
     ok = _polygon_checks(n_vertices, soup, allow_loops, refused, index_base)
+    if not split:
+        return _build(n_vertices, soup, ok, refused, index_base)
+    soup, copied = separate(n_vertices, soup, ok)
+    while True:
+        built = _build(n_vertices + len(copied), soup, ok, dict(refused), index_base)
+        stuck = np.setdiff1d(np.flatnonzero(ok), built.accepted)
+        if not len(stuck):
+            return replace(built, copied=copied)
+        soup, copied = _isolate(n_vertices, soup, copied, stuck)
+
+
+def _build(n_vertices: int, soup: Ragged, ok: np.ndarray, refused: dict, index_base: int) -> Built:
     corners = _corners(n_vertices, soup, ok)
     order = np.argsort(corners.slot, kind="stable")
     _refuse_overused(corners, order, ok, refused, index_base)
@@ -230,6 +318,108 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
             refused[p] = _edge_refusal(p, corners, order, accepted, index_base)
     arrays = _link_boundaries(n_vertices, built, fans)
     return Built(arrays, np.flatnonzero(accepted), [refused[p] for p in sorted(refused)])
+
+
+def separate(n_vertices: int, soup: Ragged, ok: np.ndarray) -> tuple[Ragged, np.ndarray]:
+    """Renumber corners so that every polygon in ``ok`` fits, copying vertices where they must part.
+
+    Every directed vertex pair keeps its first use in input order (a
+    self-loop its first two); the first uses of ``a→b`` and ``b→a`` are
+    glued into one edge. A later use is *cut*: it has to become an edge of
+    its own. Around each vertex, the corners linked through glued edges form
+    fans: paths (open) or cycles (closed). A vertex keeps its open fans
+    together, as the structure allows; each closed fan that is not alone
+    there, and each fan where a cut use starts or ends, goes to a vertex of
+    its own, so a cut opens the edge at both ends and leaves no pinch.
+    The group holding the vertex's earliest corner keeps the vertex; the
+    others get copies, numbered from ``n_vertices`` in order of their
+    earliest corner. A clean soup comes back unchanged.
+
+    All of it is set-based: one sort of the corners by vertex pair, and a
+    union-find over corners (`component_roots`) for the fans.
+
+    Returns
+    -------
+    (Ragged, ndarray)
+        The renumbered soup, and for each copy the input vertex it copies.
+
+    Examples
+    --------
+    Two triangles meeting only at vertex 0, each of them a closed fan there
+    (two cones' tips): one cone moves to a copy, vertex 6.
+
+    >>> cone = lambda t, r: [[t, r[0], r[1]], [t, r[1], r[2]], [t, r[2], r[0]], [r[2], r[1], r[0]]]
+    >>> soup, copied = separate(7, ragged(cone(0, [1, 2, 3]) + cone(0, [4, 5, 6])), np.ones(8, dtype=bool))
+    >>> soup.indices.reshape(-1, 3)[4:7].tolist(), copied.tolist()
+    ([[7, 4, 5], [7, 5, 6], [7, 6, 4]], [0])
+    """
+    offsets, idx = soup.offsets, soup.indices
+    counts = np.diff(offsets)
+    poly = np.repeat(np.arange(len(counts), dtype=_I64), counts)
+    first = np.zeros(len(idx), dtype=bool)
+    first[offsets[:-1][counts > 0]] = True
+    succ = cyclic_next(first)
+    live = np.flatnonzero(ok[poly])
+    a, b = idx[live], idx[succ[live]]
+    loop = a == b
+    slot = (np.minimum(a, b) * max(n_vertices, 1) + np.maximum(a, b)) * 2 + (a > b)
+    order = np.argsort(slot, kind="stable")
+    s_slot, s_loop = slot[order], loop[order]
+    heads = run_starts(s_slot)
+    rank = np.arange(len(order)) - run_heads(heads)
+    cut = np.zeros(len(idx), dtype=bool)
+    starts = live[order[rank >= np.where(s_loop, 2, 1)]]
+    cut[starts] = True
+    cut[succ[starts]] = True  # the corners where a cut use starts or ends
+    # Glued: the first a→b with the first b→a (adjacent runs), a self-loop's first two uses.
+    h = np.flatnonzero(heads)
+    hs = s_slot[h]
+    twin_run = (hs[:-1] % 2 == 0) & (hs[1:] == hs[:-1] + 1)
+    second = np.flatnonzero(~heads & (rank == 1) & s_loop)
+    x = live[order[np.r_[h[:-1][twin_run], second - 1]]]
+    y = live[order[np.r_[h[1:][twin_run], second]]]
+    # A glued edge links, at each of its ends, the corner it leaves from with the corner the twin reaches.
+    u, w = np.r_[x, succ[x]], np.r_[succ[y], y]
+    roots = component_roots(len(idx), u, w)
+    fans = np.unique(roots[live])
+    size = np.bincount(roots[live], minlength=len(idx))[fans]
+    links = np.bincount(roots[u], minlength=len(idx))[fans]
+    holds_cut = np.bincount(roots[cut], minlength=len(idx))[fans] > 0
+    alone = (links == size) | holds_cut  # a closed fan, or one with a cut use
+    v = idx[fans]
+    shared = np.full(n_vertices, len(idx), dtype=_I64)
+    np.minimum.at(shared, v[~alone], fans[~alone])
+    label = np.where(alone, fans, shared[v])  # each group is named by its earliest corner
+    groups_, at = np.unique(label, return_inverse=True)
+    gv = idx[groups_]
+    keeper = np.full(n_vertices, len(idx), dtype=_I64)
+    np.minimum.at(keeper, gv, groups_)
+    moves = groups_ != keeper[gv]
+    vertex_of_group = np.where(moves, n_vertices + np.cumsum(moves) - 1, gv)
+    fan_vertex = np.zeros(len(idx), dtype=_I64)
+    fan_vertex[fans] = vertex_of_group[at]
+    renumbered = idx.copy()
+    renumbered[live] = fan_vertex[roots[live]]
+    return Ragged(offsets, renumbered), gv[moves]
+
+
+def _isolate(n_vertices: int, soup: Ragged, copied: np.ndarray, stuck: np.ndarray) -> tuple[Ragged, np.ndarray]:
+    """Give each corner of the ``stuck`` polygons a new vertex of its own (OpenMesh's importer's remedy).
+
+    `separate` leaves nothing stuck on the inputs we know of; this is the
+    guarantee that ``split`` keeps every well-formed polygon whatever the
+    input.
+    """
+    offsets, idx = soup.offsets, soup.indices
+    counts = np.diff(offsets)
+    mask = np.zeros(len(counts), dtype=bool)
+    mask[stuck] = True
+    where = np.flatnonzero(np.repeat(mask, counts))
+    original = idx[where]
+    original = np.where(original < n_vertices, original, copied[np.maximum(original - n_vertices, 0)])
+    renumbered = idx.copy()
+    renumbered[where] = n_vertices + len(copied) + np.arange(len(where), dtype=_I64)
+    return Ragged(offsets, renumbered), np.r_[copied, original].astype(_I64)
 
 
 def _polygon_checks(n_vertices: int, soup: Ragged, allow_loops: bool, refused: dict, base: int) -> np.ndarray:

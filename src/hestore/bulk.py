@@ -17,7 +17,11 @@ what the format can hold.
 An import is one transaction: it stores the whole mesh or nothing. With
 ``on_error="raise"`` the first polygon the structure cannot take is reported
 before anything is written; with ``on_error="skip"`` every such polygon is
-left out and listed in the `ImportReport`.
+left out and listed in the `ImportReport`; with ``on_error="split"`` it is
+kept on copies of the vertices where it does not fit
+(`hestore.build.separate`). ``orient=True`` reverses polygons first
+(`hestore.build.orient`). Every repair is decided on the arrays before
+anything is written, and reported.
 """
 
 from __future__ import annotations
@@ -57,7 +61,7 @@ __all__ = ["SkippedPolygon", "ImportReport", "MeshArrays", "import_arrays", "imp
 #: ``progress(stage, done, total)``: stage is ``"read"`` (bytes), ``"build"`` or ``"write"`` (rows).
 Progress = Callable[[str, int, int], None]
 
-ON_ERROR = ("raise", "skip")
+ON_ERROR = ("raise", "skip", "split")
 
 
 class SkippedPolygon(NamedTuple):
@@ -83,7 +87,8 @@ class ImportReport:
     vertices, edges, polygons : int
         How many of each were stored.
     skipped : list of SkippedPolygon
-        Every polygon left out, in input order (empty with ``on_error="raise"``).
+        Every polygon left out, in input order (empty with ``on_error="raise"``;
+        with ``"split"``, only polygons malformed in themselves).
     source : str or None
         The file imported, if any.
     properties : list of Property
@@ -92,6 +97,14 @@ class ImportReport:
     flipped : list of int
         With ``orient=True``: the input polygons that were reversed, in
         input order (their corner data reversed with them).
+    split : dict of int to list of int
+        With ``on_error="split"``: each input vertex that was copied, and
+        the ids of its copies (which take its position and properties).
+    cut : list of (int, int)
+        With ``orient=True`` and ``on_error="split"``: the edges, as input
+        vertex pairs, along which components that cannot be oriented were
+        cut (one of each edge's polygons is on a copy of a vertex, in
+        ``split``).
     """
 
     mesh: "Mesh"
@@ -102,6 +115,8 @@ class ImportReport:
     source: str | None = None
     properties: list = field(default_factory=list)
     flipped: list = field(default_factory=list)
+    split: dict = field(default_factory=dict)
+    cut: list = field(default_factory=list)
 
     def summary(self, limit: int = 20) -> str:
         """A few lines for people: counts, then up to ``limit`` skipped polygons."""
@@ -114,12 +129,26 @@ class ImportReport:
         if self.flipped:
             shown = ", ".join(map(str, self.flipped[:limit])) + (", ..." if len(self.flipped) > limit else "")
             lines.append(f"reversed {len(self.flipped)} polygon(s) to orient every component consistently: {shown}")
+        if self.cut:
+            shown = _listed([f"{a}–{b}" for a, b in self.cut[:limit]], len(self.cut))
+            lines.append(f"cut {len(self.cut)} edge(s) so that every component could be oriented: {shown}")
+        if self.split:
+            copies = sum(map(len, self.split.values()))
+            items = list(self.split.items())[:limit]
+            shown = _listed([f"{v} → {', '.join(map(str, c))}" for v, c in items], len(self.split))
+            lines.append(
+                f"copied {len(self.split)} vertex(es) into {copies} new one(s) so that every polygon fits: {shown}"
+            )
         if self.skipped:
             lines.append(f"skipped {len(self.skipped)} polygon(s) the half-edge structure cannot take:")
             lines.extend(f"  {s}" for s in self.skipped[:limit])
             if len(self.skipped) > limit:
                 lines.append(f"  ... and {len(self.skipped) - limit} more")
         return "\n".join(lines)
+
+
+def _listed(shown: list, total: int) -> str:
+    return "; ".join(shown) + ("; ..." if total > len(shown) else "")
 
 
 def _described(p: Property) -> str:
@@ -142,7 +171,7 @@ class MeshArrays(NamedTuple):
 
 def _check_on_error(on_error: str) -> None:
     if on_error not in ON_ERROR:
-        raise InvalidInputError(f"on_error must be 'raise' or 'skip', not {on_error!r}")
+        raise InvalidInputError(f"on_error must be 'raise', 'skip' or 'split', not {on_error!r}")
 
 
 def _as_positions(positions) -> np.ndarray:
@@ -204,12 +233,19 @@ def import_arrays(
     polygons : array_like, shape (F, k), or sequence of sequences of int
         Corners of each polygon, counter-clockwise, as row indices of
         ``positions``.
-    on_error : {"raise", "skip"}
+    on_error : {"raise", "skip", "split"}
         What to do with a polygon the structure cannot take (an edge that
         would get a third polygon, an orientation that contradicts a
         neighbour's, a repeated vertex it cannot hold, an index out of range,
         no vertices at all, a closed fan meeting other polygons at a vertex):
-        raise, storing nothing, or leave it out and report it.
+        raise, storing nothing; leave it out and report it; or, with
+        ``"split"``, keep it on its own copies of the vertices where it does
+        not fit (`hestore.build.separate`: a cut edge copies the vertex it
+        starts from, a closed fan that meets others moves whole), reported in
+        ``report.split``. ``"split"`` still leaves out, and reports, a
+        polygon malformed in itself (no vertices, an index out of range, a
+        self-loop the policy forbids). A soup that imports with ``"raise"``
+        gives the same mesh with ``"split"``.
     allow_loops, allow_multi_edges : bool
         The new mesh's policy (see `Store.create_mesh`).
     progress : callable, optional
@@ -223,7 +259,9 @@ def import_arrays(
         lowest polygon of each component keeps its orientation); the
         reversed ones are in ``report.flipped``. A component that cannot be
         oriented (a Möbius strip) raises `NonOrientableError` naming a
-        polygon, and nothing is stored.
+        polygon, and nothing is stored; with ``on_error="split"`` it is
+        oriented along a spanning tree of its polygons instead and cut along
+        the edges where its polygons then disagree (``report.cut``).
 
     Returns
     -------
@@ -248,6 +286,9 @@ def import_arrays(
     >>> report = store.import_arrays("bad", square, [[0, 1, 2], [0, 1, 3]], on_error="skip")
     >>> report.polygons, report.skipped[0].index
     (1, 1)
+    >>> report = store.import_arrays("kept", square, [[0, 1, 2], [0, 1, 3]], on_error="split")
+    >>> report.polygons, report.vertices, report.split
+    (2, 6, {0: [4], 1: [5]})
     """
     _check_on_error(on_error)
     _check_flags(replace=replace, orient=orient)
@@ -326,20 +367,32 @@ def _import(
     if progress is not None:
         progress("build", 0, 1)
     flipped: list = []
+    cut: list = []
+    split = on_error == "split"
     if orient:
-        turn = _build.orient(soup)
+        turn = _build.orient(soup, cut=split)
+        cut = turn.cut.tolist()
         if turn.conflict is not None:
             where = f"line {int(lines[turn.conflict])}, " if lines is not None else ""
             prefix = f"{source}: " if source else ""
             raise NonOrientableError(
                 f"{prefix}polygon {turn.conflict} ({where}input order) is in a component that cannot be oriented "
-                f"consistently (a Möbius strip or the like); nothing was stored"
+                "consistently (a Möbius strip or the like); nothing was stored (on_error='split' would cut it "
+                "along edges until it can be oriented)"
             )
         soup = Ragged(soup.offsets, soup.indices[turn.order])
         if data is not None and data.corner:
             data = data._replace(corner={k: v[turn.order] for k, v in data.corner.items()})
         flipped = np.flatnonzero(turn.flip).tolist()
-    built = _build.build(len(pos), soup, allow_loops=allow_loops, index_base=index_base)
+    built = _build.build(len(pos), soup, allow_loops=allow_loops, index_base=index_base, split=split)
+    copies: dict = {}
+    if len(built.copied):
+        pos = np.concatenate([pos, pos[built.copied]])
+        if data is not None:
+            data = data._replace(vertex={k: np.concatenate([v, v[built.copied]]) for k, v in data.vertex.items()})
+        first = len(pos) - len(built.copied)
+        for original, copy in sorted(zip(built.copied.tolist(), range(first, len(pos)))):
+            copies.setdefault(original, []).append(copy)
     if progress is not None:
         progress("build", 1, 1)
     skipped = [
@@ -355,7 +408,7 @@ def _import(
     mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace)
     declared = [spec for spec, _, _ in columns]
     return ImportReport(
-        mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared, flipped
+        mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared, flipped, copies, cut
     )
 
 

@@ -42,7 +42,7 @@ from collections.abc import Sequence
 
 import hestore
 from hestore import migrate, urls
-from hestore.errors import HestoreError, MeshExistsError
+from hestore.errors import HestoreError, InvalidInputError, MeshExistsError, PolicyError
 from hestore.progress import ProgressBar
 from hestore.values import KINDS as PROPERTY_KINDS
 
@@ -112,16 +112,16 @@ def _cmd_import(args: argparse.Namespace) -> int:
             if skipped is None:
                 raise
             where = path if skipped.line is None else f"{path}:{skipped.line}"
-            return _error(
-                f"{where}: polygon {skipped.index}: {skipped.reason}; nothing was stored "
-                "(--on-error skip stores the mesh without such polygons)"
-            )
+            hint = "--on-error skip stores the mesh without such polygons"
+            if not isinstance(exc, (InvalidInputError, PolicyError)):
+                hint += ", --on-error split keeps them on copies of their vertices"
+            return _error(f"{where}: polygon {skipped.index}: {skipped.reason}; nothing was stored ({hint})")
     print(report.summary())
     if replacing:
         print(f"replaced the mesh {name!r} that was there (in the same transaction)")
     if report.skipped:
         print(
-            f"hestore: warning: {len(report.skipped)} polygon(s) skipped (--on-error skip); "
+            f"hestore: warning: {len(report.skipped)} polygon(s) skipped (--on-error {args.on_error}); "
             f"mesh {report.mesh.name!r} was stored without them",
             file=sys.stderr,
         )
@@ -534,17 +534,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     imp.add_argument(
         "--on-error",
-        choices=("raise", "skip"),
+        choices=("raise", "skip", "split"),
         default="raise",
         help="what to do with a polygon the half-edge structure cannot take: raise (the default) "
         "stops with an error naming it and stores nothing; skip stores the mesh without it "
-        "and lists it in the report",
+        "and lists it in the report; split keeps it on its own copies of the vertices where it does not fit "
+        "and lists the copies (a polygon malformed in itself is still skipped)",
     )
     imp.add_argument(
         "--orient",
         action="store_true",
         help="reverse polygons so that each component is consistently oriented (reported); a component that "
-        "cannot be oriented (a Moebius strip) is an error and nothing is stored",
+        "cannot be oriented (a Moebius strip) is an error and nothing is stored, or, with --on-error split, "
+        "is cut along edges until it can be (reported)",
     )
     imp.add_argument(
         "--replace",
