@@ -13,6 +13,8 @@ import pytest
 
 import hestore
 
+from meshes import require_shared_meshes
+
 # walk_packages, not iter_modules: subpackages' modules (hestore.io.*) have examples too.
 MODULES = sorted(
     ["hestore"]
@@ -35,7 +37,9 @@ def test_docstring_examples(name, tmp_path, monkeypatch):
 DOCS = pathlib.Path(__file__).resolve().parents[1] / "docs"
 #: Pages whose ```python blocks run, in order, as one script; a block marked ```python no-run is skipped (it
 #: shows what needs something the tests do not have).
-RUN_PAGES = ("properties.md", "editing.md")
+RUN_PAGES = ("properties.md", "editing.md", "repair.md")
+#: Pages whose examples import the shared meshes by name run in their folder (they only read there).
+IN_MESHES = ("repair.md",)
 
 
 def python_blocks(text: str) -> list[str]:
@@ -44,7 +48,7 @@ def python_blocks(text: str) -> list[str]:
 
 @pytest.mark.parametrize("page", RUN_PAGES)
 def test_page_examples_run(page, tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
+    monkeypatch.chdir(require_shared_meshes() if page in IN_MESHES else tmp_path)
     blocks = python_blocks((DOCS / page).read_text(encoding="utf-8"))
     assert blocks, f"docs/{page} has no python example"
     namespace: dict = {"__name__": f"docs_{page}"}

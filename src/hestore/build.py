@@ -32,6 +32,11 @@ The steps (seed 003's twin matching, generalised):
    free outgoing half-edge of the next fan around the vertex, so every fan is
    reachable in the vertex's rotation; ``V_BOUNDARY`` picks a free outgoing
    half-edge wherever there is one.
+
+The repairs run before those steps, on the soup: `orient` decides which
+polygons to reverse (and, asked to, where to cut a component that cannot be
+oriented), and `separate` renumbers corners onto copies of vertices so that
+every well-formed polygon fits (``build(..., split=True)``).
 """
 
 from __future__ import annotations
