@@ -420,8 +420,9 @@ def _isolate(n_vertices: int, soup: Ragged, copied: np.ndarray, stuck: np.ndarra
     mask = np.zeros(len(counts), dtype=bool)
     mask[stuck] = True
     where = np.flatnonzero(np.repeat(mask, counts))
-    original = idx[where]
-    original = np.where(original < n_vertices, original, copied[np.maximum(original - n_vertices, 0)])
+    original = idx[where].copy()
+    copy = original >= n_vertices
+    original[copy] = copied[original[copy] - n_vertices]
     renumbered = idx.copy()
     renumbered[where] = n_vertices + len(copied) + np.arange(len(where), dtype=_I64)
     return Ragged(offsets, renumbered), np.r_[copied, original].astype(_I64)
