@@ -49,7 +49,7 @@ import numpy as np
 from hestore.arrays import Ragged, TopologyArrays, component_roots, cyclic_next, ragged, run_heads, run_starts
 from hestore.errors import HalfEdgeNotFreeError, InvalidInputError, NonManifoldError, PolicyError, VertexNotFreeError
 
-__all__ = ["Refusal", "Built", "build", "separate", "Orientation", "orient"]
+__all__ = ["Refusal", "Built", "build", "well_formed", "separate", "Orientation", "orient"]
 
 _I64 = np.int64
 
@@ -143,7 +143,7 @@ class Orientation(NamedTuple):
     cut: np.ndarray
 
 
-def orient(polygons, *, cut: bool = False) -> Orientation:
+def orient(polygons, *, cut: bool = False, ok: np.ndarray | None = None) -> Orientation:
     """Decide which polygons to reverse so that each component is consistently oriented.
 
     Two polygons sharing an edge used by exactly two polygons agree when they
@@ -158,6 +158,8 @@ def orient(polygons, *, cut: bool = False) -> Orientation:
     With ``cut=True`` a component that cannot be oriented is oriented along
     a breadth-first spanning tree of its polygons, from its lowest polygon;
     the edges where its neighbours then disagree are returned in ``cut``.
+    Only the polygons in ``ok`` (default: all) take part (`well_formed`'s:
+    a polygon the import leaves out anyway must not decide anything).
 
     Examples
     --------
@@ -182,7 +184,7 @@ def orient(polygons, *, cut: bool = False) -> Orientation:
     start = np.zeros(len(idx), dtype=bool)
     start[offsets[:-1][degree > 0]] = True
     a, b = idx, idx[cyclic_next(start)] if len(idx) else idx
-    use = np.flatnonzero(a != b)
+    use = np.flatnonzero((a != b) if ok is None else (a != b) & ok[poly])
     lo, hi, forward, owner = np.minimum(a, b)[use], np.maximum(a, b)[use], (a < b)[use], poly[use]
     order = np.lexsort((owner, hi, lo))
     lo, hi, forward, owner = lo[order], hi[order], forward[order], owner[order]
@@ -297,11 +299,25 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
         return _build(n_vertices, soup, ok, refused, index_base)
     soup, copied = separate(n_vertices, soup, ok)
     while True:
-        built = _build(n_vertices + len(copied), soup, ok, dict(refused), index_base)
+        built = _build(n_vertices + len(copied), soup, ok.copy(), dict(refused), index_base)
         stuck = np.setdiff1d(np.flatnonzero(ok), built.accepted)
         if not len(stuck):
             return replace(built, copied=copied)
         soup, copied = _isolate(n_vertices, soup, copied, stuck)
+
+
+def well_formed(n_vertices: int, polygons, *, allow_loops: bool = True) -> np.ndarray:
+    """Which polygons are well formed in themselves: not empty, indices in range, no forbidden self-loop.
+
+    The polygons ``build(..., split=True)`` keeps, and the ones `orient`
+    should look at.
+
+    Examples
+    --------
+    >>> well_formed(3, [[0, 1, 2], [], [0, 5, 1], [0, 0, 1]], allow_loops=False).tolist()
+    [True, False, False, False]
+    """
+    return _polygon_checks(n_vertices, ragged(polygons), allow_loops, {}, 0)
 
 
 def _build(n_vertices: int, soup: Ragged, ok: np.ndarray, refused: dict, index_base: int) -> Built:
@@ -425,7 +441,16 @@ def _isolate(n_vertices: int, soup: Ragged, copied: np.ndarray, stuck: np.ndarra
     original[copy] = copied[original[copy] - n_vertices]
     renumbered = idx.copy()
     renumbered[where] = n_vertices + len(copied) + np.arange(len(where), dtype=_I64)
-    return Ragged(offsets, renumbered), np.r_[copied, original].astype(_I64)
+    copied = np.r_[copied, original].astype(_I64)
+    # Copies the stuck polygons held before are used by nobody now: drop them, keeping the order of the rest.
+    used = np.zeros(len(copied), dtype=bool)
+    live = renumbered[(renumbered >= n_vertices)]
+    used[live - n_vertices] = True
+    new_id = np.full(len(copied), -1, dtype=_I64)
+    new_id[used] = n_vertices + np.arange(int(used.sum()), dtype=_I64)
+    moved = renumbered >= n_vertices
+    renumbered[moved] = new_id[renumbered[moved] - n_vertices]
+    return Ragged(offsets, renumbered), copied[used]
 
 
 def _polygon_checks(n_vertices: int, soup: Ragged, allow_loops: bool, refused: dict, base: int) -> np.ndarray:

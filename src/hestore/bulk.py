@@ -370,7 +370,7 @@ def _import(
     cut: list = []
     split = on_error == "split"
     if orient:
-        turn = _build.orient(soup, cut=split)
+        turn = _build.orient(soup, cut=split, ok=_build.well_formed(len(pos), soup, allow_loops=allow_loops))
         cut = turn.cut.tolist()
         if turn.conflict is not None:
             where = f"line {int(lines[turn.conflict])}, " if lines is not None else ""
