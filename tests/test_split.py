@@ -18,22 +18,20 @@ self-loop the policy forbids. Covered here:
   through ``report.split``;
 * export and re-import with ``on_error="raise"``, atomicity and argument
   checks, the ``hestore import --on-error split`` command line;
-* known bugs, as strict xfails: the fallback of `build` crashes when
-  `separate` made no copy, leaves `separate`'s copies behind unused when it
-  runs, and is never reached by a polygon that runs an edge twice (which is
-  skipped instead); ``orient=True`` lets a malformed polygon decide the
-  orientation of well-formed ones.
+* the fallback of `build` (a fresh vertex per corner of a polygon `separate`
+  could not fit): when `separate` made no copy, without leaving unused
+  copies behind, and for a polygon that runs an edge twice; and that a
+  polygon left out anyway does not decide the orientation of the others.
 """
 
 from __future__ import annotations
 
 import itertools
 import pathlib
-import traceback
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, reject, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hestore import cli
@@ -109,33 +107,6 @@ def well_formed(loop, n: int, allow_loops: bool) -> bool:
     if not loop or not all(0 <= v < n for v in loop):
         return False
     return allow_loops or all(loop[k] != loop[k - 1] for k in range(len(loop)))
-
-
-def _is_fallback_crash(exc: IndexError) -> bool:
-    return traceback.extract_tb(exc.__traceback__)[-1].name == "_isolate"
-
-
-#: The reason of a refusal that ``split`` should never make (see `test_a_polygon_running_an_edge_twice_is_kept`).
-OVERUSED = "twice, but an edge has only two sides"
-
-
-def split_or_reject(call, *args, **kwargs):
-    """``call(*args, **kwargs)``, rejecting the examples that hit one of two known bugs of the fallback.
-
-    Each bug has a strict xfail of its own (`test_the_fallback_works_when_separate_made_no_copy`,
-    `test_a_polygon_running_an_edge_twice_is_kept`); rejecting exactly its symptom (the crash in
-    ``_isolate``, a refusal for running an edge twice) keeps every other property checked on random soups.
-    """
-    try:
-        result = call(*args, **kwargs)
-    except IndexError as exc:
-        if not _is_fallback_crash(exc):
-            raise
-        reject()
-    refusals = result.refused if hasattr(result, "refused") else result.skipped
-    if any(OVERUSED in r.reason for r in refusals):
-        reject()
-    return result
 
 
 def assert_copies_are_like_their_originals(report):
@@ -381,7 +352,7 @@ def test_a_polygon_running_an_edge_twice_is_kept_on_copies(store):
 @given(soup=soups(), allow_loops=st.booleans())
 def test_build_split_keeps_every_well_formed_polygon(soup, allow_loops):
     n, polygons = soup
-    built = split_or_reject(build, n, polygons, allow_loops=allow_loops, split=True)
+    built = build(n, polygons, allow_loops=allow_loops, split=True)
     kept = [i for i, p in enumerate(polygons) if well_formed(p, n, allow_loops)]
     assert built.accepted.tolist() == kept
     assert [r.index for r in built.refused] == [i for i in range(len(polygons)) if i not in kept]
@@ -458,7 +429,7 @@ def shape_soups(draw):
 @given(soup=shape_soups())
 def test_split_stores_every_polygon_of_a_damaged_shape(store, soup):
     positions, polygons = soup
-    report = split_or_reject(store.import_arrays, fresh(), positions, polygons, on_error="split")
+    report = store.import_arrays(fresh(), positions, polygons, on_error="split")
     mesh = report.mesh
     assert report.polygons == len(polygons) and report.skipped == []
     assert mesh.check() == []
@@ -598,11 +569,12 @@ def test_cli_split_still_skips_a_malformed_polygon(capsys, db_url, tmp_path):
     assert "copied 2 vertex(es) into 2 new one(s)" in out
 
 
-# -- known bugs -----------------------------------------------------------------
+# -- the fallback -----------------------------------------------------------------
 
 # Soups where `separate` copies nothing, yet a polygon does not fit: a cut use whose
 # corners stay in the fan that keeps the original vertex (it is glued there through
-# its other edge), so the cut edge still repeats a taken directed pair.
+# its other edge), so the cut edge still repeats a taken directed pair; the fallback
+# gives that polygon a vertex per corner.
 NO_COPY_STUCK = [
     pytest.param(3, [[0, 1, 2], [2, 1]], id="triangle-and-2gon"),
     pytest.param(5, [[0, 1, 4], [1, 2, 4], [4, 1, 0]], id="reversed-repeat-after-a-neighbour"),
@@ -611,10 +583,6 @@ NO_COPY_STUCK = [
 ]
 
 
-@pytest.mark.xfail(strict=True, raises=IndexError, reason=(
-    "build(split=True): when separate() made no copy but a polygon is still refused, the fallback _isolate() "
-    "indexes the empty `copied` array (np.where evaluates copied[...] eagerly) and raises IndexError"
-))
 @pytest.mark.parametrize("n, polygons", NO_COPY_STUCK)
 def test_the_fallback_works_when_separate_made_no_copy(n, polygons):
     assert len(separate(n, ragged(polygons), np.ones(len(polygons), dtype=bool))[1]) == 0
@@ -624,8 +592,6 @@ def test_the_fallback_works_when_separate_made_no_copy(n, polygons):
     assert built_loops_back(built, n) == polygons
 
 
-@pytest.mark.xfail(strict=True, raises=IndexError, reason="import_arrays(on_error='split') crashes in build's "
-                   "fallback (see test_the_fallback_works_when_separate_made_no_copy)")
 def test_split_import_of_a_triangle_and_a_reversed_repeat(store):
     positions = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (0, 1, 0), (1, 1, 0)]
     polygons = [[0, 1, 4], [1, 2, 4], [4, 1, 0]]
@@ -634,11 +600,6 @@ def test_split_import_of_a_triangle_and_a_reversed_repeat(store):
     assert loops_back(report) == polygons
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "orient=True decides orientation with the malformed polygons included: a polygon with an index out of "
-    "range (later skipped) makes edge 0–1 look used three times, so polygon 1 is not reversed and split copies "
-    "vertices 0 and 1 instead"
-))
 def test_a_skipped_polygon_does_not_decide_orientation(store):
     positions = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, -1, 0)]
     clean = store.import_arrays("clean", positions, [[0, 1, 2], [0, 1, 3]], on_error="split", orient=True)
@@ -649,11 +610,6 @@ def test_a_skipped_polygon_does_not_decide_orientation(store):
     assert tables(store, report.mesh) == tables(store, clean.mesh)
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "build(split=True): when the fallback gives a still-refused polygon a fresh vertex per corner, the copies "
-    "separate() had made for that polygon's corners are left behind unused: a new isolated vertex, listed in "
-    "report.split"
-))
 def test_the_fallback_leaves_no_unused_copy(store):
     # A triangle, then a quad running the self-loop at 0 twice and 0→1 again: separate() copies 0 once (vertex 3),
     # the quad still does not fit, and the fallback moves it onto vertices 4–7.
@@ -667,11 +623,6 @@ def test_the_fallback_leaves_no_unused_copy(store):
     assert {c for cs in report.split.values() for c in cs} <= used
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "build(split=True): a polygon that runs one directed edge twice, where separate() copies nothing, is "
-    "skipped ('it runs 0→1 twice, but an edge has only two sides') instead of going to the fallback: "
-    "_build()'s _refuse_overused() clears it in build()'s own `ok` mask, so it never counts as stuck"
-))
 @pytest.mark.parametrize("polygon", [[0, 1, 1, 0, 1, 1], [0, 1, 2, 0, 1, 0, 2]], ids=["with-self-loops", "loop-free"])
 def test_a_polygon_running_an_edge_twice_is_kept(store, polygon):
     positions = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
