@@ -297,6 +297,9 @@ def build(n_vertices: int, polygons, *, allow_loops: bool = True, index_base: in
     ok = _polygon_checks(n_vertices, soup, allow_loops, refused, index_base)
     if not split:
         return _build(n_vertices, soup, ok, refused, index_base)
+    plain = _build(n_vertices, soup, ok.copy(), dict(refused), index_base)
+    if len(plain.accepted) == int(ok.sum()):
+        return plain  # every well-formed polygon fits as it is: nothing to copy (a clean file costs one build)
     soup, copied = separate(n_vertices, soup, ok)
     while True:
         built = _build(n_vertices + len(copied), soup, ok.copy(), dict(refused), index_base)
