@@ -411,16 +411,19 @@ def selected_backends(ap: argparse.ArgumentParser, args: argparse.Namespace) -> 
     return backends
 
 
-def selected_meshes(ap: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[list[str], list[str]]:
-    """``(meshes, skipped)`` from ``--only``; a missing file skips its mesh."""
+def selected_meshes(ap: argparse.ArgumentParser, args: argparse.Namespace,
+                    files: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
+    """``(meshes, skipped)`` from ``--only``; a missing file skips its mesh. ``files``: the file of each mesh
+    (default `FILES`; a benchmark's smaller stand-ins)."""
+    files = FILES if files is None else files
     only = [m.strip() for m in args.only.split(",") if m.strip()]
     for m in only:
         if m not in MESHES:
             ap.error(f"unknown mesh {m!r} (choose from {', '.join(MESHES)})")
     skipped: list[str] = []
     for m in list(only):
-        if m in FILES and not os.path.exists(os.path.join(args.meshes_dir, FILES[m])):
-            skipped.append(f"{m}: {os.path.join(args.meshes_dir, FILES[m])} not found")
+        if m in files and not os.path.exists(os.path.join(args.meshes_dir, files[m])):
+            skipped.append(f"{m}: {os.path.join(args.meshes_dir, files[m])} not found")
             only.remove(m)
     return only, skipped
 
@@ -730,20 +733,22 @@ def grid_arrays(n: int, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     return positions, faces
 
 
-def mesh_label(mesh: str, n: int) -> str:
+def mesh_label(mesh: str, n: int, files: dict[str, str] = FILES) -> str:
     if mesh == "grid":
         return f"grid {n}×{n}"
-    return FILES[mesh]
+    return files[mesh]
 
 
-def import_mesh(store: hestore.Store, mesh: str, n: int, folder: str, grid: tuple | None = None):
+def import_mesh(store: hestore.Store, mesh: str, n: int, folder: str, grid: tuple | None = None, *,
+                files: dict[str, str] = FILES, **options):
     """Store one workload mesh under its own name: the grid through ``store.import_arrays`` (``grid``: its
-    arrays, when the caller made them before a timed region), a shared file through ``store.import_file``.
+    arrays, when the caller made them before a timed region), a shared file through ``store.import_file``
+    (``files``: the file of each mesh). ``options`` (``on_error``, ``orient``, ...) go to the import.
     Returns hestore's import report."""
     if mesh == "grid":
         positions, faces = grid if grid is not None else grid_arrays(n)
-        return store.import_arrays("grid", positions, faces)
-    return store.import_file(os.path.join(folder, FILES[mesh]), mesh)
+        return store.import_arrays("grid", positions, faces, **options)
+    return store.import_file(os.path.join(folder, files[mesh]), mesh, **options)
 
 
 class Statements:

@@ -1,6 +1,6 @@
 """Run every benchmark, one after the other (SPEC §9).
 
-    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties,euler]
+    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties,euler,repair]
                         [--backends sqlite,postgresql]
 
 Each benchmark runs in its own process (``python bench/<name>.py``), never two
@@ -21,15 +21,15 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from _common import HERE, Parser, log, meshes_dir, print_table, run_command, selected_backends  # noqa: E402
 
-BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler")
-TAKES_MESHES = ("import", "graph")  # the benchmarks that take --meshes-dir
+BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler", "repair")
+TAKES_MESHES = ("import", "graph", "repair")  # the benchmarks that take --meshes-dir
 
 
 def main(argv=None) -> int:
     ap = Parser(__doc__, quick={}, workdir_help="passed on: where the benchmarks put their SQLite files")
     ap.add_argument("--benchmarks", default=",".join(BENCHMARKS),
                     help=f"which to run, in this order: {', '.join(BENCHMARKS)} (default all)")
-    ap.add_argument("--meshes-dir", default=meshes_dir(), help="passed on to import and graph")
+    ap.add_argument("--meshes-dir", default=meshes_dir(), help=f"passed on to {', '.join(TAKES_MESHES)}")
     ap.add_argument("--timeout", type=float, default=None, help="seconds allowed per benchmark (default: no limit)")
     args = ap.parse_args(argv)
     backends = selected_backends(ap, args)
