@@ -23,6 +23,7 @@ from hestore.errors import (
     EulerError,
     MissingDependencyError,
     NonOrientableError,
+    ReadOnlyError,
     RevisionNotFoundError,
     HalfEdgeNotFreeError,
     HestoreError,
@@ -44,6 +45,7 @@ from hestore.errors import (
 )
 from hestore.bulk import ImportReport, MeshArrays, SkippedPolygon
 from hestore.handles import Edge, HalfEdge, Polygon, Vertex
+from hestore.history import Diff, Revision
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
 from hestore.summary import Stats
@@ -56,6 +58,8 @@ __all__ = [
     "Store",
     "Mesh",
     "Counts",
+    "Diff",
+    "Revision",
     "Property",
     "Stats",
     "Vertex",
@@ -81,6 +85,7 @@ __all__ = [
     "EulerError",
     "MissingDependencyError",
     "NonOrientableError",
+    "ReadOnlyError",
     "RevisionNotFoundError",
     "InvariantViolationError",
     "StoreError",

@@ -325,7 +325,7 @@ def write_columns(
     ...     cur = conn.connection.dbapi_connection.cursor()
     ...     write_columns(cur, engine.dialect, schema.edges, 3, {"id": np.arange(2), "halfedge": np.array([0, 2])})
     ...     print(conn.execute(sa.select(schema.edges)).all())
-    [(3, 0, 0), (3, 1, 2)]
+    [(3, 0, 0, 0), (3, 1, 2, 0)]
     """
     names = list(columns)
     arrays = [np.asarray(columns[n]) for n in names]

@@ -122,7 +122,7 @@ def diff(mesh: "Mesh", a: int, b: int) -> Diff:
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
-    >>> mesh.vertex(2).position = (0, 2, 0)
+    >>> mesh.set_position(mesh.vertex(2), (0, 2, 0))
     >>> d = mesh.diff(1, 2)
     >>> d.changed["vertex"], d.created["vertex"]
     ([2], [])

@@ -360,7 +360,7 @@ class Persistence:
         )
         nv, ne, np_, nq = changes.counters
         upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump})
-        if changes.bump:
+        if changes.bump and changes.history:
             r = schema.revisions
             add = self.st.get(
                 "add_revision",

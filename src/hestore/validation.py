@@ -106,6 +106,7 @@ CODES: tuple[str, ...] = (
     "REF",
     "POLICY",
     "PROPERTY_REF",
+    "HISTORY",
 )
 
 #: One line per invariant code: what it requires.
@@ -122,13 +123,16 @@ CODE_DESCRIPTIONS: dict[str, str] = {
     "REF": "every reference points at an existing element of the same mesh",
     "POLICY": "no loop / parallel edge in a mesh whose policy forbids them",
     "PROPERTY_REF": "every property value row belongs to a declared property and an existing element of its kind",
+    "HISTORY": "the kept history agrees with the current state: no row is newer than the mesh's revision, each "
+    "superseded row version ended after it began, a current row is newer than the versions it superseded, and "
+    "every kept revision has its record",
 }
 
-#: The codes `check_arrays` checks: all but those about stored property rows.
-_ARRAY_CODES = CODES[:-1]
+#: The codes `check_arrays` checks: all but those about stored property rows and history.
+_ARRAY_CODES = CODES[:-2]
 
 #: Element kinds a `Violation` can be about, in report order for equal ids.
-KINDS: tuple[str, ...] = ("halfedge", "vertex", "edge", "polygon")
+KINDS: tuple[str, ...] = ("halfedge", "vertex", "edge", "polygon", "property", "revision")
 
 _CODE_RANK = {code: i for i, code in enumerate(CODES)}
 _KIND_RANK = {kind: i for i, kind in enumerate(KINDS)}
@@ -871,7 +875,10 @@ def check(mesh: "Mesh") -> list[Violation]:
     with mesh.session.snapshot(mesh.ref) as snap:
         arrays = _arrays(snap.columns(_REQUESTS))
         found = check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
-        return found + _property_violations(snap, mesh.id, arrays)
+        found += _property_violations(snap, mesh.id, arrays)
+        if not mesh.is_view:  # a view is read from the history this checks
+            found += _history_violations(snap, mesh.id)
+        return found
 
 
 def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violation]:
@@ -902,3 +909,53 @@ def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violatio
                 for i in dangling[:100].tolist()
             )
     return sorted(out, key=lambda v: (v.kind, v.ids))
+
+
+#: The kind of element each versioned table holds, for `HISTORY` violations.
+_KIND_OF_TABLE = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
+
+
+def _history_violations(snap, mesh_id: int) -> list[Violation]:
+    """``HISTORY``: the row versions and revision records against the mesh's revision. Set-based, 100 per kind."""
+    m, r = schema.meshes, schema.revisions
+    [(current, kept_from, keep)] = snap.rows(
+        sa.select(m.c.revision, m.c.kept_from, m.c.history).where(m.c.id == mesh_id)
+    )
+    out = []
+    for table in schema.VERSIONED:
+        history = schema.HISTORY[table.name]
+        kind = _KIND_OF_TABLE.get(table.name, "property")
+        key = [c for c in table.primary_key if c.name != "mesh_id"]
+        hkey = [history.c[c.name] for c in key]
+        mine, theirs = table.c.mesh_id == mesh_id, history.c.mesh_id == mesh_id
+        for row in snap.rows(sa.select(*key, table.c.rev).where(mine, table.c.rev > current).limit(100)):
+            out.append(Violation("HISTORY", kind, _ids(row), f"{kind} {_ids(row)[0]} was written by revision "
+                                 f"{row[-1]}, after the mesh's revision {current}"))
+        bad = (history.c.rev_to > current) | (history.c.rev_to < 1) | (history.c.rev >= history.c.rev_to)
+        for row in snap.rows(sa.select(*hkey, history.c.rev, history.c.rev_to).where(theirs, bad).limit(100)):
+            out.append(Violation("HISTORY", kind, _ids(row), f"a kept version of {kind} {_ids(row)[0]} runs from "
+                                 f"revision {row[-2]} to {row[-1]}, which the mesh at revision {current} cannot have"))
+        latest = sa.select(*hkey, sa.func.max(history.c.rev_to).label("until")).where(theirs).group_by(*hkey).subquery()
+        stale = (
+            sa.select(*key, table.c.rev, latest.c.until)
+            .join_from(table, latest, sa.and_(*(c == latest.c[c.name] for c in key)))
+            .where(mine, table.c.rev < latest.c.until)
+            .limit(100)
+        )
+        for row in snap.rows(stale):
+            out.append(Violation("HISTORY", kind, _ids(row), f"{kind} {_ids(row)[0]} is a version of revision "
+                                 f"{row[-2]}, older than revision {row[-1]}, which superseded an earlier one"))
+    if keep and current >= 1:
+        first = max(kept_from, 1)
+        recorded = {n for (n,) in snap.rows(
+            sa.select(r.c.number).where(r.c.mesh_id == mesh_id, r.c.number >= first, r.c.number <= current)
+        )}
+        missing = [n for n in range(first, current + 1) if n not in recorded]
+        out.extend(Violation("HISTORY", "revision", (n,), f"revision {n} is kept but has no record")
+                   for n in missing[:100])
+    return out
+
+
+def _ids(row) -> tuple[int, ...]:
+    """A history violation's ids: the element (for a value row, the element and the property), then revisions."""
+    return tuple(int(x) for x in row if x is not None)
