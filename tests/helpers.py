@@ -1,8 +1,8 @@
 """Helpers shared by the kernel and navigation tests.
 
-* `dump` — the full content of every hestore table (the property catalogue and
-  value tables included), as sorted tuples, so that "a refused operation
-  changed nothing" is one equality;
+* `dump` — the full content of every hestore table (the property catalogue,
+  value tables and history included), as sorted tuples, so that "a refused
+  operation changed nothing" is one equality;
 * `assert_refused` — the standard check of a refused operation: the typed
   error, and unchanged tables and revision, both outside a transaction block
   and inside one (which then goes on and commits another edit);
@@ -22,7 +22,7 @@ from hestore import schema
 
 TABLES = (
     schema.meshes, schema.vertices, schema.halfedges, schema.edges, schema.polygons, schema.properties,
-    *schema.VALUE_TABLES,
+    *schema.VALUE_TABLES, *schema.HISTORY.values(),
 )
 
 

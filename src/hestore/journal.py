@@ -52,17 +52,20 @@ def to_history(table: sa.Table, what: str, dialect: str, *where) -> sa.Insert:
     ``what="new"``: each row this revision wrote (``rev = :r``) that has no
     history row for it yet did not exist before: a row of its key alone
     (``rev`` NULL) records that, after the statement that inserted it.
+    A key recorded for this revision already is left as it is (a batch may
+    name a key twice).
     """
     history = schema.HISTORY[table.name]
     r = sa.bindparam("r", type_=sa.BigInteger())
     if what == "old":
         names = [c.name for c in table.columns]
         rows = sa.select(*table.columns, r).where(table.c.mesh_id == sa.bindparam("m"), table.c.rev < r, *where)
-        return history.insert().from_select([*names, "rev_to"], rows)
-    key = [c for c in table.primary_key]
-    rows = sa.select(*key, r).where(table.c.mesh_id == sa.bindparam("m"), table.c.rev == r, *where)
+    else:
+        key = [c for c in table.primary_key]
+        names = [c.name for c in key]
+        rows = sa.select(*key, r).where(table.c.mesh_id == sa.bindparam("m"), table.c.rev == r, *where)
     insert = postgresql_insert if dialect == "postgresql" else sqlite_insert
-    return insert(history).from_select([*(c.name for c in key), "rev_to"], rows).on_conflict_do_nothing()
+    return insert(history).from_select([*names, "rev_to"], rows).on_conflict_do_nothing()
 
 
 def _versions_at(source: sa.FromClause, revision: Any) -> sa.Subquery:

@@ -155,7 +155,7 @@ def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
         f"JOIN unnest({arrays}) AS u({', '.join(q(c) for c in key)}) ON {match} "
         f"WHERE t.{q('mesh_id')} = %s AND t.{q('rev')} {cond} %s"
     )
-    return sql + (" ON CONFLICT DO NOTHING" if what == "new" else "")
+    return sql + " ON CONFLICT DO NOTHING"
 
 
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.

@@ -558,7 +558,8 @@ class Session:
         p = self._persistence
         return UnitOfWork(
             ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]), p.values, p.positions,
-            revision=int(row[7]) + 1, history=bool(row[8]),
+            # The stored revision already counts this transaction once it has changed the mesh.
+            revision=int(row[7]) + (0 if ref.id in self._changed else 1), history=bool(row[8]),
         )
 
     def lock(self, ref: MeshRef) -> None:
