@@ -13,7 +13,8 @@ can still be viewed).
 
 Existing meshes keep their current state as their first kept revision: their
 rows get ``rev`` = the mesh's revision, ``kept_from`` is that revision, and a
-mesh with a revision above 0 gets its row in ``revisions``.
+mesh with a revision above 0 gets its row in ``revisions`` (with id counters
+0: that revision created everything there is).
 """
 # Written out explicitly, never imported from hestore.schema: this revision
 # must keep describing the schema as it was when it was written.
@@ -86,6 +87,10 @@ def upgrade() -> None:
         sa.Column("committed_at", sa.DateTime(timezone=True), nullable=False),
         sa.Column("message", sa.Text(), nullable=True),
         sa.Column("changes", sa.Text(), nullable=True),
+        sa.Column("next_vertex", _ID, nullable=False, server_default="0"),
+        sa.Column("next_edge", _ID, nullable=False, server_default="0"),
+        sa.Column("next_polygon", _ID, nullable=False, server_default="0"),
+        sa.Column("next_property", _ID, nullable=False, server_default="0"),
         sa.Column("action", sa.String(8), nullable=True),
         sa.Column("target", _ID, nullable=True),
         sqlite_with_rowid=False,

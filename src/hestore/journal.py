@@ -26,7 +26,10 @@ from sqlalchemy.sql.visitors import replacement_traverse
 
 from hestore import schema
 
-__all__ = ["to_history", "as_of", "request_as_of", "touched", "rows_at", "restore_statements", "created_changes"]
+__all__ = [
+    "to_history", "as_of", "request_as_of", "touched", "created", "rows_at", "restore_statements", "created_changes",
+    "COUNTED",
+]
 
 #: The element kinds of SPEC §4.1's ``changes``.
 KINDS = ("vertex", "halfedge", "edge", "polygon")
@@ -156,17 +159,40 @@ def touched(table: sa.Table, after: Any, until: Any) -> sa.Select:
     )
 
 
-def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None) -> sa.Select:
-    """The rows of ``table`` at ``revision`` (without ``mesh_id`` and ``rev``), all or those with ``keys``."""
+#: The tables whose new rows take ids from a counter of ``meshes`` (and ``revisions``): that counter, and
+#: how many ids each of its steps gives (an edge's two half-edges).
+COUNTED = {"vertices": ("next_vertex", 1), "halfedges": ("next_edge", 2), "edges": ("next_edge", 1),
+           "polygons": ("next_polygon", 1), "properties": ("next_property", 1)}
+
+
+def created(table: sa.Table, start: dict, end: dict):
+    """The condition "``table``'s row was created between two points", from the id counters at both.
+
+    Ids are handed out in order and never reused, so what a run of
+    revisions created is a range of ids: no history row is needed for it.
+    None for a table whose rows have no counter (property values).
+    """
+    if table.name not in COUNTED:
+        return None
+    name, step = COUNTED[table.name]
+    return (table.c.id >= step * start[name]) & (table.c.id < step * end[name])
+
+
+def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None, new=None) -> sa.Select:
+    """The rows of ``table`` at ``revision`` (without ``mesh_id`` and ``rev``): all, or those with ``keys``.
+
+    ``new``: a condition that picks more rows (`created`'s).
+    """
     cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
     stmt = sa.select(*cols).where(table.c.mesh_id == sa.bindparam("m"))
     if keys is not None:
         key = [c for c in table.primary_key if c.name != "mesh_id"]
-        stmt = stmt.where(sa.tuple_(*key).in_(keys))
+        picked = sa.tuple_(*key).in_(keys)
+        stmt = stmt.where(picked if new is None else sa.or_(picked, new))
     return as_of(stmt, revision)
 
 
-def restore_statements(table: sa.Table, target: int, revision: int) -> list:
+def restore_statements(table: sa.Table, target: int, revision: int, since: dict) -> list:
     """The statements that make ``table``'s current rows of a mesh (``:m``) equal to its rows at ``target``.
 
     Run as ``revision`` (a new revision): the keys changed after
@@ -175,6 +201,8 @@ def restore_statements(table: sa.Table, target: int, revision: int) -> list:
     keys that did not exist then stay deleted, and keys that come back get
     their "did not exist" record for this revision. Set-based: one statement
     each, over the history twin's index; nothing is read into Python.
+    ``since`` holds the id counters when revision ``target + 1`` began:
+    rows with ids from there on were created after ``target``.
     """
     history = schema.HISTORY[table.name]
     key = [c for c in table.primary_key if c.name != "mesh_id"]
@@ -184,6 +212,9 @@ def restore_statements(table: sa.Table, target: int, revision: int) -> list:
     else:
         keys = sa.select(*(history.c[c.name] for c in key)).where(history.c.mesh_id == m, history.c.rev_to > target)
         changed = sa.tuple_(*key).in_(keys)
+        if table.name in COUNTED:
+            name, step = COUNTED[table.name]
+            changed = sa.or_(changed, table.c.id >= step * since[name])
     names = [c.name for c in table.columns]
     copy_old = history.insert().from_select(
         [*names, "rev_to"],

@@ -122,7 +122,12 @@ class Mesh:
         return self.ref.name
 
     def __repr__(self) -> str:
-        return f"Mesh({self.name!r})"
+        at = "" if self.ref.revision is None else f".at({self.ref.revision})"
+        return f"Mesh({self.name!r}){at}"
+
+    def _described(self) -> str:
+        at = "" if self.ref.revision is None else f" at revision {self.ref.revision}"
+        return f"mesh {self.name!r}{at}"
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Mesh) and other.ref is self.ref
@@ -139,7 +144,7 @@ class Mesh:
             )
         if handle.mesh != self:
             raise ElementNotFoundError(
-                f"{handle!r} belongs to mesh {handle.mesh.name!r}, not to {self.name!r}"
+                f"{handle!r} belongs to {handle.mesh._described()}, not to {self._described()}"
             )
         return handle.id
 

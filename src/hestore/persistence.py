@@ -158,6 +158,8 @@ def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
     return sql + " ON CONFLICT DO NOTHING"
 
 
+_VALUE_TABLE_NAMES = frozenset(t.name for t in schema.VALUE_TABLES)
+
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.
 _STAGE_ROWS = 20_000
 
@@ -366,7 +368,8 @@ class Persistence:
                 "add_revision",
                 lambda: r.insert().values(
                     mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
-                    message=sa.bindparam("msg"), changes=sa.bindparam("ch"),
+                    message=sa.bindparam("msg"), changes=sa.bindparam("ch"), next_vertex=sa.bindparam("sv"),
+                    next_edge=sa.bindparam("se"), next_polygon=sa.bindparam("sp"), next_property=sa.bindparam("sq"),
                 ),
             )
             now = datetime.now(timezone.utc)
@@ -375,7 +378,9 @@ class Persistence:
                 # Whole tables wrote no history: what they created is counted here, once.
                 n = {name: len(columns["id"]) for name, columns in changes.bulk.tables.items()}
                 counts = created_changes(n["vertices"], n["halfedges"], n["edges"], n["polygons"])
-            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message, "ch": counts})
+            sv, se, sp, sq = changes.start
+            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message, "ch": counts,
+                                    "sv": sv, "se": se, "sp": sp, "sq": sq})
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
         """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
@@ -540,7 +545,9 @@ class Persistence:
         if table.name in schema.HISTORY and what != "delete":
             cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
         self._write_statement(mesh_id, table, what, cols, columns)
-        if journal and what in ("insert", "upsert"):
+        if journal and what in ("insert", "upsert") and table.name in _VALUE_TABLE_NAMES:
+            # A value row may come back after it was deleted; an element or property never does (its
+            # id is new), and what a revision created is found from its id counters instead.
             self.journal(mesh_id, table, "new", key, keys)
 
     def _write_statement(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:

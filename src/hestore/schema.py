@@ -217,6 +217,11 @@ revisions = sa.Table(
     sa.Column("message", sa.Text, nullable=True),
     # JSON of SPEC's `changes` where a revision wrote no history (a bulk import, a copy); else NULL.
     sa.Column("changes", sa.Text, nullable=True),
+    # The id counters when the revision began: the elements it created have ids from there.
+    sa.Column("next_vertex", _ID, nullable=False, server_default="0"),
+    sa.Column("next_edge", _ID, nullable=False, server_default="0"),
+    sa.Column("next_polygon", _ID, nullable=False, server_default="0"),
+    sa.Column("next_property", _ID, nullable=False, server_default="0"),
     # "undo" / "redo" / "revert" and the revision it acted on; NULL for an ordinary revision.
     sa.Column("action", sa.String(8), nullable=True),
     sa.Column("target", _ID, nullable=True),

@@ -58,7 +58,7 @@ import sqlalchemy as sa
 
 from hestore import drivers, migrate, schema, urls
 from hestore.columns import read_columns, read_snapshot
-from hestore.journal import as_of, request_as_of, restore_statements, rows_at, to_history, touched
+from hestore.journal import as_of, created, request_as_of, restore_statements, rows_at, to_history, touched
 from hestore.drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
@@ -792,6 +792,7 @@ class Session:
                 for r in (a, b) if check else ():
                     self._kept(ref, r)
                 lo, hi = min(a, b), max(a, b)
+                start, end = self._counters_after(ref, lo), self._counters_after(ref, hi)
                 out = {}
                 for table in schema.VERSIONED:
                     whole = table is schema.properties or lo == 0
@@ -801,10 +802,21 @@ class Session:
                         if r == 0:
                             rows.append([])
                             continue
-                        stmt = rows_at(table, sa.literal(r), keys)
+                        stmt = rows_at(table, sa.literal(r), keys, created(table, start, end))
                         rows.append([tuple(row) for row in self._conn.execute(stmt, {"m": ref.id})])
                     out[table.name] = (rows[0], rows[1])
                 return out
+
+    def _counters_after(self, ref: MeshRef, revision: int) -> dict:
+        """The id counters after ``revision``: when the next one began, or the mesh's own after the last."""
+        r, m = schema.revisions, schema.meshes
+        names = ("next_vertex", "next_edge", "next_polygon", "next_property")
+        row = self._conn.execute(
+            sa.select(*(r.c[n] for n in names)).where(r.c.mesh_id == ref.id, r.c.number == revision + 1)
+        ).first()
+        if row is None:
+            row = self._conn.execute(sa.select(*(m.c[n] for n in names)).where(m.c.id == ref.id)).first()
+        return dict(zip(names, row))
 
     def copy_rows(self, source: MeshRef, target: MeshRef, table: sa.Table) -> None:
         """Copy the rows of ``table`` from one mesh (or a view of its past) to another, as its revision 1.
@@ -880,8 +892,9 @@ class Session:
                 )
             revision = uow.revision
             dialect = self._engine.dialect.name
+            since = self._counters_after(ref, target)
             for table in schema.VERSIONED:
-                for stmt in restore_statements(table, target, revision):
+                for stmt in restore_statements(table, target, revision, since):
                     conn.execute(stmt, {"m": ref.id})
                 conn.execute(to_history(table, "new", dialect), {"m": ref.id, "r": revision})
             m = schema.meshes

@@ -164,6 +164,9 @@ class ChangeSet:
         and the row versions it supersedes go to history with it.
     history : bool
         Whether the mesh keeps history (superseded row versions are kept).
+    start : tuple of int
+        The counters before this flush's changes: in a revision's first
+        flush, where its new elements' ids begin.
     bulk : BulkRows or None
         Whole tables of an import.
     drop : bool
@@ -181,6 +184,7 @@ class ChangeSet:
     bump: int
     revision: int = 1
     history: bool = True
+    start: tuple[int, int, int, int] = (0, 0, 0, 0)
     bulk: BulkRows | None = None
     drop: bool = False
     properties: PropertyChanges | None = None
@@ -867,8 +871,8 @@ class UnitOfWork:
         deleted = {"vertex": v.deleted, "halfedge": he.deleted, "edge": pairs[0].deleted, "polygon": pairs[1].deleted}
         properties = self._property_changes(deleted)
         return ChangeSet(
-            self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self.revision, self.history, self._bulk,
-            properties=properties,
+            self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self.revision, self.history, self._counters0,
+            self._bulk, properties=properties,
         )
 
     def flushed(self) -> None:
