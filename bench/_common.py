@@ -55,7 +55,8 @@ import hestore
 
 DEFAULT_PG_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 BACKENDS = ("sqlite", "postgresql")
-TABLES = ("meshes", "vertices", "halfedges", "edges", "polygons")
+#: Every table of hestore's schema (element tables, properties, history).
+TABLES = tuple(hestore.schema.metadata.tables)
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
