@@ -28,11 +28,11 @@ TRI = ([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]])
 
 
 def _mesh_rows(store: hestore.Store, mesh_id: int) -> dict[str, list[tuple]]:
-    """Every row of every table of one mesh, without the mesh id (sorted)."""
+    """Every row of the current state of one mesh, without the mesh id and the revision that wrote it (sorted)."""
     out = {}
     with store.session.reading() as conn:
-        for table in schema.MESH_TABLES:
-            cols = [c for c in table.c if c.name != "mesh_id"]
+        for table in schema.VERSIONED:
+            cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
             rows = conn.execute(sa.select(*cols).where(table.c.mesh_id == mesh_id).order_by(*cols))
             out[table.name] = [tuple(r) for r in rows]
     return out

@@ -336,10 +336,11 @@ def test_codes_are_ordered_and_described():
         "REF",
         "POLICY",
         "PROPERTY_REF",
+        "HISTORY",
     )
     assert list(CODE_DESCRIPTIONS) == list(CODES)
     assert all(isinstance(d, str) and d and "\n" not in d for d in CODE_DESCRIPTIONS.values())
-    assert KINDS == ("halfedge", "vertex", "edge", "polygon")
+    assert KINDS == ("halfedge", "vertex", "edge", "polygon", "property", "revision")
 
 
 def test_violation_is_frozen_and_formats():
