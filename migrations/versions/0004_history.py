@@ -64,9 +64,9 @@ _VERSIONED = (
 
 
 def upgrade() -> None:
-    with op.batch_alter_table("meshes") as batch:
-        batch.add_column(sa.Column("history", sa.Boolean(), nullable=False, server_default=sa.true()))
-        batch.add_column(sa.Column("kept_from", _ID, nullable=False, server_default="0"))
+    # Plain ADD COLUMNs: a rebuilt SQLite table would lose AUTOINCREMENT, and mesh ids would be reused.
+    op.add_column("meshes", sa.Column("history", sa.Boolean(), nullable=False, server_default=sa.true()))
+    op.add_column("meshes", sa.Column("kept_from", _ID, nullable=False, server_default="0"))
     op.execute("UPDATE meshes SET kept_from = revision")
     for name, key, other in _VERSIONED:
         op.add_column(name, sa.Column("rev", _ID, nullable=False, server_default="0"))
@@ -116,6 +116,6 @@ def downgrade() -> None:
         floats = [sa.Column(c, t) for c, t in other if t is _FLOAT]
         with op.batch_alter_table(name, table_kwargs={"sqlite_with_rowid": False}, reflect_args=floats) as batch:
             batch.drop_column("rev")
-    with op.batch_alter_table("meshes") as batch:
+    with op.batch_alter_table("meshes", table_kwargs={"sqlite_autoincrement": True}) as batch:
         batch.drop_column("kept_from")
         batch.drop_column("history")
