@@ -29,7 +29,9 @@ from hestore.journal import KINDS
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of"]
+__all__ = [
+    "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of", "revision_number",
+]
 
 _ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
 _VALUE_TABLES = {t.name for t in schema.VALUE_TABLES}
@@ -86,7 +88,8 @@ class Diff:
         return any(self.created[k] or self.removed[k] or self.changed[k] for k in KINDS)
 
 
-def _revision_number(value, what: str = "revision") -> int:
+def revision_number(value, what: str = "revision") -> int:
+    """``value`` as a revision number (any integer, numpy's included), else `InvalidInputError`."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise InvalidInputError(f"a {what} is an int, not {type(value).__name__} {value!r}")
     return int(value)
@@ -127,7 +130,7 @@ def diff(mesh: "Mesh", a: int, b: int) -> Diff:
     >>> d.changed["vertex"], d.created["vertex"]
     ([2], [])
     """
-    a, b = _revision_number(a), _revision_number(b)
+    a, b = revision_number(a), revision_number(b)
     return diff_of(mesh.session.versions(mesh.ref, a, b))
 
 
@@ -152,7 +155,7 @@ def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
     [(1, 'two vertices', 2)]
     """
     if limit is not None:
-        limit = _revision_number(limit, "limit")
+        limit = revision_number(limit, "limit")
         if limit < 0:
             raise InvalidInputError(f"limit must be at least 0, not {limit}")
     return [
@@ -194,7 +197,7 @@ def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
 
 def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
     """Commit a new revision whose content equals ``mesh.at(revision)``; return its number."""
-    revision = _revision_number(revision)
+    revision = revision_number(revision)
     return mesh.session.restore(mesh.ref, revision, message or f"revert to revision {revision}", "revert", revision)
 
 
@@ -218,7 +221,7 @@ def redo(mesh: "Mesh") -> int:
 
 def prune(mesh: "Mesh", keep: int) -> int:
     """Keep the newest ``keep`` revisions of ``mesh`` (at least 1: the current one); return the oldest kept."""
-    keep = _revision_number(keep, "number of revisions to keep")
+    keep = revision_number(keep, "number of revisions to keep")
     if keep < 1:
         raise InvalidInputError(f"keep must be at least 1 (the current revision), not {keep}")
     return mesh.session.prune(mesh.ref, keep)

@@ -207,7 +207,7 @@ class Mesh:
         (0, 1, 0)
         """
         base = self.ref.base or self.ref
-        number = history._revision_number(revision)
+        number = history.revision_number(revision)
         return Mesh(self.store, self.session.view(base, number), self.allow_loops, self.allow_multi_edges)
 
     def history(self, limit: int | None = None) -> list[history.Revision]:
