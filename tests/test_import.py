@@ -39,7 +39,7 @@ _names = itertools.count()
 
 def _rows(store: hestore.Store, mesh: hestore.Mesh, table: sa.Table) -> list[tuple]:
     with store.session.reading() as conn:
-        cols = [c for c in table.c if c.name != "mesh_id"]
+        cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
         return [tuple(r) for r in conn.execute(sa.select(*cols).where(table.c.mesh_id == mesh.id).order_by(table.c.id))]
 
 
