@@ -14,6 +14,7 @@ nothing of transactions.
 
 from __future__ import annotations
 
+from datetime import datetime, timezone
 from typing import Any, Callable
 
 import numpy as np
@@ -132,6 +133,29 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
     )
 
 
+def _copy_to_history(table: sa.Table, history: sa.Table, *where) -> sa.Insert:
+    """``INSERT INTO <table>_history SELECT <row>, :r FROM <table> WHERE mesh_id = :m AND rev < :r AND ...``."""
+    names = [c.name for c in table.columns]
+    rows = sa.select(*table.columns, sa.bindparam("r", type_=sa.BigInteger())).where(
+        table.c.mesh_id == sa.bindparam("m"), table.c.rev < sa.bindparam("r"), *where
+    )
+    return history.insert().from_select([*names, "rev_to"], rows)
+
+
+def _pg_supersede(table: sa.Table, history: sa.Table, key: tuple) -> str:
+    """`Persistence.supersede` on PostgreSQL: the rows matched by ``unnest``-ed key arrays, in one statement."""
+    q = '"{}"'.format
+    names = ", ".join(q(c.name) for c in table.columns)
+    picked = ", ".join(f"t.{q(c.name)}" for c in table.columns)
+    arrays = ", ".join("%b::bigint[]" for _ in key)
+    match = " AND ".join(f"t.{q(c)} = u.{q(c)}" for c in key)
+    return (
+        f"INSERT INTO {q(history.name)} ({names}, {q('rev_to')}) SELECT {picked}, %s "
+        f"FROM {q(table.name)} AS t JOIN unnest({arrays}) AS u({', '.join(q(c) for c in key)}) ON {match} "
+        f"WHERE t.{q('mesh_id')} = %s AND t.{q('rev')} < %s"
+    )
+
+
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.
 _STAGE_ROWS = 20_000
 
@@ -163,10 +187,10 @@ class Persistence:
     # -- the catalogue row ------------------------------------------------
 
     def mesh_row(self, mesh_id: int, *, lock: bool) -> tuple | None:
-        """The mesh's counters, policy and whether it has properties, or None.
+        """The mesh's counters, policy, whether it has properties, its revision and history flag, or None.
 
         ``(next_vertex, next_edge, next_polygon, next_property, allow_loops,
-        allow_multi_edges, has_properties)``. With ``lock`` the row is locked
+        allow_multi_edges, has_properties, revision, history)``. With ``lock`` the row is locked
         for the rest of the transaction (``SELECT ... FOR UPDATE``; the caller
         sets the lock timeout).
         """
@@ -176,7 +200,7 @@ class Persistence:
             has = sa.exists().where(props.c.mesh_id == m.c.id)
             stmt = sa.select(
                 m.c.next_vertex, m.c.next_edge, m.c.next_polygon, m.c.next_property,
-                m.c.allow_loops, m.c.allow_multi_edges, has,
+                m.c.allow_loops, m.c.allow_multi_edges, has, m.c.revision, m.c.history,
             ).where(m.c.id == sa.bindparam("m"))
             return stmt.with_for_update(of=m) if lock else stmt
 
@@ -278,8 +302,14 @@ class Persistence:
 
     # -- writes ----------------------------------------------------------
 
-    def write(self, changes: ChangeSet) -> None:
+    def write(self, changes: ChangeSet, message: str | None = None) -> None:
         """Write one flush worth of changes, then the mesh's counters and revision.
+
+        Every row written carries the transaction's revision (``rev``); a row
+        version an earlier revision wrote is first copied to its table's
+        history twin (`supersede`), so history is recorded by the very
+        statements that change the rows. The first flush of a transaction
+        (``changes.bump``) also adds the revision's row, with ``message``.
 
         One statement per table and kind of change: an ``executemany`` on
         SQLite (in-process, so a row costs about a microsecond), and on
@@ -296,6 +326,7 @@ class Persistence:
             ms = schema.meshes
             self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), mesh_id)
             return
+        self._rev, self._keep = changes.revision, changes.history
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
         write = self._write
         for table, rows in ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons)):
@@ -327,6 +358,17 @@ class Persistence:
         )
         nv, ne, np_, nq = changes.counters
         upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump})
+        if changes.bump:
+            r = schema.revisions
+            add = self.st.get(
+                "add_revision",
+                lambda: r.insert().values(
+                    mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
+                    message=sa.bindparam("msg"),
+                ),
+            )
+            now = datetime.now(timezone.utc)
+            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message})
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
         """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
@@ -363,6 +405,8 @@ class Persistence:
     def _clear(self, mesh_id: int, prop: Property) -> None:
         """Delete every value of one property."""
         table = table_of(prop.dtype)
+        if self._keep:
+            self._supersede_where(mesh_id, table, "property", {"q": prop.id}, lambda t: t.c.property == sa.bindparam("q"))
 
         def build():
             return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
@@ -389,7 +433,7 @@ class Persistence:
         n = len(columns["id"])
         if not n:
             return
-        columns = {"property": np.full(n, prop.id, dtype=np.int64), **columns}
+        columns = {"property": np.full(n, prop.id, dtype=np.int64), **columns, "rev": np.full(n, self._rev)}
         if prop.dtype == "str" and self._pg:
             # Binary COPY has no text layout here: one INSERT over unnest-ed arrays instead.
             names = tuple(columns)
@@ -415,11 +459,45 @@ class Persistence:
             return (
                 v.update()
                 .where(v.c.mesh_id == s.c.mesh_id, v.c.id == s.c.id)
-                .values(x=s.c.x, y=s.c.y, z=s.c.z)
+                .values(x=s.c.x, y=s.c.y, z=s.c.z, rev=sa.bindparam("r"))
             )
 
-        self.st.get("update_positions_staged", build).run(cursor, {})
+        if self._keep:
+            self._supersede_where(
+                mesh_id, v, "staged", {}, lambda t: sa.exists().where(staging.c.mesh_id == t.c.mesh_id, staging.c.id == t.c.id)
+            )
+        self.st.get("update_positions_staged", build).run(cursor, {"r": self._rev})
         cursor.execute(f"TRUNCATE {staging.name}")
+
+    def supersede(self, mesh_id: int, table: sa.Table, key: tuple, columns: list[list]) -> None:
+        """Copy to history the row versions, matched by ``key`` columns, that an earlier revision wrote.
+
+        Run before the statement that changes or deletes those rows; a row
+        this transaction wrote already (``rev`` is its revision) is not
+        copied again, so history keeps only the state before the
+        transaction. One statement: an ``executemany`` on SQLite, a join
+        with ``unnest``-ed arrays on PostgreSQL.
+        """
+        history = schema.HISTORY[table.name]
+        if self._pg:
+            sql = self._pg_sql.get(("supersede", table.name, key))
+            if sql is None:
+                sql = self._pg_sql[("supersede", table.name, key)] = _pg_supersede(table, history, key)
+            self.cursor().execute(sql, [self._rev, *columns, mesh_id, self._rev])
+            return
+
+        def build():
+            match = [table.c[c] == sa.bindparam(c) for c in key]
+            return _copy_to_history(table, history, *match)
+
+        stmt = self.st.get(("supersede", table.name, key), build)
+        stmt.run_columns(self.cursor(), {"m": mesh_id, "r": self._rev}, dict(zip(key, columns)))
+
+    def _supersede_where(self, mesh_id: int, table: sa.Table, what: str, values: dict, where) -> None:
+        """`supersede` for every row a condition on ``table`` picks: one ``INSERT ... SELECT``."""
+        history = schema.HISTORY[table.name]
+        stmt = self.st.get(("supersede_where", table.name, what), lambda: _copy_to_history(table, history, where(table)))
+        stmt.run(self.cursor(), {"m": mesh_id, "r": self._rev, **values})
 
     def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
         self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
@@ -432,6 +510,7 @@ class Persistence:
             if bulk.progress is not None:
                 report = lambda rows, base=done: bulk.progress(base + rows, total)  # noqa: E731
             table = schema.metadata.tables[name]
+            columns = {**columns, "rev": np.full(len(columns["id"]), self._rev)}
             write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, progress=report)
             done += len(columns["id"])
 
@@ -441,9 +520,15 @@ class Persistence:
             self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)])
 
     def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
-        """`_write` for rows given as one list per column: one statement."""
+        """`_write` for rows given as one list per column: one statement (two with history)."""
         if not columns or not len(columns[0]):
             return
+        if table.name in schema.HISTORY:
+            if what != "insert" and self._keep:
+                key = ("id",) if what == "update" else tuple(c for c in cols if table.c[c].primary_key)
+                self.supersede(mesh_id, table, key, [columns[cols.index(k)] for k in key])
+            if what != "delete":
+                cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
         if self._pg:
             sql = self._pg_sql.get((what, table.name, cols))
             if sql is None:

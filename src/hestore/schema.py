@@ -31,10 +31,13 @@ __all__ = [
     "property_reals",
     "property_integers",
     "property_texts",
+    "revisions",
+    "VERSIONED",
+    "HISTORY",
 ]
 
 #: The Alembic revision that creates exactly the tables below.
-SCHEMA_REVISION = "0003"
+SCHEMA_REVISION = "0004"
 
 metadata = sa.MetaData()
 
@@ -58,6 +61,11 @@ class NoAffinity(sa.types.UserDefinedType):
 #: A float64 column: ``double precision`` on PostgreSQL, exact REALs on SQLite.
 _FLOAT = sa.Float(53).with_variant(NoAffinity(), "sqlite")
 
+def _rev() -> sa.Column:
+    """The revision that wrote a row (SPEC §4.1): a row is part of revision ``r`` when ``rev <= r``."""
+    return sa.Column("rev", _ID, nullable=False, server_default="0")
+
+
 meshes = sa.Table(
     "meshes",
     metadata,
@@ -72,6 +80,9 @@ meshes = sa.Table(
     sa.Column("next_edge", _ID, nullable=False),
     sa.Column("next_polygon", _ID, nullable=False),
     sa.Column("next_property", _ID, nullable=False, server_default="0"),
+    # History (SPEC §4.1): whether it is kept, and the oldest revision still viewable.
+    sa.Column("history", sa.Boolean, nullable=False, server_default=sa.true()),
+    sa.Column("kept_from", _ID, nullable=False, server_default="0"),
     # Never hand out a deleted mesh's id again (SQLite would reuse the top rowid).
     sqlite_autoincrement=True,
 )
@@ -85,6 +96,7 @@ vertices = sa.Table(
     sa.Column("x", _FLOAT, nullable=True),
     sa.Column("y", _FLOAT, nullable=True),
     sa.Column("z", _FLOAT, nullable=True),
+    _rev(),
     sqlite_with_rowid=False,
 )
 
@@ -99,6 +111,7 @@ halfedges = sa.Table(
     sa.Column("twin", _ID, nullable=False),
     sa.Column("edge", _ID, nullable=False),
     sa.Column("polygon", _ID, nullable=True),
+    _rev(),
     sa.Index("ix_halfedges_origin", "mesh_id", "origin"),
     sa.Index("ix_halfedges_polygon", "mesh_id", "polygon"),
     sqlite_with_rowid=False,
@@ -110,6 +123,7 @@ edges = sa.Table(
     sa.Column("mesh_id", sa.Integer, primary_key=True),
     sa.Column("id", _ID, primary_key=True),
     sa.Column("halfedge", _ID, nullable=False),
+    _rev(),
     sqlite_with_rowid=False,
 )
 
@@ -119,6 +133,7 @@ polygons = sa.Table(
     sa.Column("mesh_id", sa.Integer, primary_key=True),
     sa.Column("id", _ID, primary_key=True),
     sa.Column("halfedge", _ID, nullable=False),
+    _rev(),
     sqlite_with_rowid=False,
 )
 
@@ -139,6 +154,7 @@ properties = sa.Table(
     sa.Column("size", sa.Integer, nullable=True),
     # The default as JSON text; NULL: no default.
     sa.Column("default_value", sa.Text, nullable=True),
+    _rev(),
     sa.UniqueConstraint("mesh_id", "kind", "name", name="uq_properties_name"),
     sqlite_with_rowid=False,
 )
@@ -153,6 +169,7 @@ def _value_table(name: str, type_: sa.types.TypeEngine, width: int) -> sa.Table:
         sa.Column("id", _ID, primary_key=True),
         sa.Column("part", sa.Integer, primary_key=True),
         *(sa.Column(f"v{k}", type_, nullable=True) for k in range(width)),
+        _rev(),
         sqlite_with_rowid=False,
     )
 
@@ -164,8 +181,45 @@ property_texts = _value_table("property_texts", sa.Text(), 1)
 #: Value tables of properties.
 VALUE_TABLES = (property_reals, property_integers, property_texts)
 
+#: Tables whose rows are versioned: each row says which revision wrote it (``rev``).
+VERSIONED = (vertices, halfedges, edges, polygons, properties, *VALUE_TABLES)
+
+# History (SPEC §4.1). When a revision changes or deletes a row that an
+# earlier revision wrote, the row as it was moves to the table's history
+# twin, with ``rev_to``, the revision that superseded it: a row version
+# belongs to revision ``r`` when ``rev <= r < rev_to``. Rows made and changed
+# within one revision leave nothing behind, so history is net; a bulk import
+# writes no history at all (its rows have ``rev = 1``, and revision 0 is empty).
+
+
+def _history_of(table: sa.Table) -> sa.Table:
+    key = [c.name for c in table.primary_key]
+    return sa.Table(
+        f"{table.name}_history",
+        metadata,
+        *(sa.Column(c.name, c.type, primary_key=c.primary_key, nullable=not c.primary_key) for c in table.columns),
+        sa.Column("rev_to", _ID, primary_key=True),
+        sa.Index(f"ix_{table.name}_history_rev_to", "mesh_id", "rev_to"),
+        sqlite_with_rowid=False,
+        info={"versions": table.name, "key": key},
+    )
+
+
+#: Each versioned table's history twin, by the versioned table's name.
+HISTORY = {t.name: _history_of(t) for t in VERSIONED}
+
+revisions = sa.Table(
+    "revisions",
+    metadata,
+    sa.Column("mesh_id", sa.Integer, primary_key=True),
+    sa.Column("number", _ID, primary_key=True),
+    sa.Column("committed_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("message", sa.Text, nullable=True),
+    sqlite_with_rowid=False,
+)
+
 #: Tables of a mesh's rows, in the order they are deleted when a mesh is dropped.
-MESH_TABLES = (*VALUE_TABLES, properties, polygons, edges, halfedges, vertices)
+MESH_TABLES = (*VALUE_TABLES, properties, polygons, edges, halfedges, vertices, revisions, *HISTORY.values())
 
 
 # Scratch tables: temporary, one per connection, emptied at commit, and not

@@ -520,7 +520,8 @@ class Session:
     def _new_uow(self, ref: MeshRef, row: tuple) -> UnitOfWork:
         p = self._persistence
         return UnitOfWork(
-            ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]), p.values, p.positions
+            ref.id, p.load, row[:4], bool(row[4]), bool(row[5]), p.catalogue, bool(row[6]), p.values, p.positions,
+            revision=int(row[7]) + 1, history=bool(row[8]),
         )
 
     def lock(self, ref: MeshRef) -> None:

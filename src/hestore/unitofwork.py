@@ -159,6 +159,11 @@ class ChangeSet:
     bump : int
         What the mesh's revision grows by: 1 in the first flush of a
         transaction that changes the mesh, else 0.
+    revision : int
+        The revision this transaction makes: every row written carries it,
+        and the row versions it supersedes go to history with it.
+    history : bool
+        Whether the mesh keeps history (superseded row versions are kept).
     bulk : BulkRows or None
         Whole tables of an import.
     drop : bool
@@ -174,6 +179,8 @@ class ChangeSet:
     polygons: RowChanges
     counters: tuple[int, int, int, int]
     bump: int
+    revision: int = 1
+    history: bool = True
     bulk: BulkRows | None = None
     drop: bool = False
     properties: PropertyChanges | None = None
@@ -205,6 +212,10 @@ class UnitOfWork:
     read_positions : callable, optional
         ``read_positions(mesh_id, ids) -> {id: (x, y, z) or None}``: stored
         positions (`hestore.persistence.Persistence.positions`).
+    revision : int
+        The revision the open transaction makes (the stored one plus one).
+    history : bool
+        Whether the mesh keeps history.
     """
 
     def __init__(
@@ -218,8 +229,13 @@ class UnitOfWork:
         has_properties: bool = False,
         read_values: Callable[[int, list, list], dict] | None = None,
         read_positions: Callable[[int, list], dict] | None = None,
+        *,
+        revision: int = 1,
+        history: bool = True,
     ) -> None:
         self.mesh_id = mesh_id
+        self.revision = revision
+        self.history = history
         self._load = load
         self._load_catalogue = catalogue
         self._read_values = read_values
@@ -850,7 +866,10 @@ class UnitOfWork:
             pairs.append(rows)
         deleted = {"vertex": v.deleted, "halfedge": he.deleted, "edge": pairs[0].deleted, "polygon": pairs[1].deleted}
         properties = self._property_changes(deleted)
-        return ChangeSet(self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self._bulk, properties=properties)
+        return ChangeSet(
+            self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self.revision, self.history, self._bulk,
+            properties=properties,
+        )
 
     def flushed(self) -> None:
         """Record that the last `changes` are in the database: start the next diff from here."""
