@@ -85,6 +85,9 @@ def upgrade() -> None:
         sa.Column("number", _ID, primary_key=True),
         sa.Column("committed_at", sa.DateTime(timezone=True), nullable=False),
         sa.Column("message", sa.Text(), nullable=True),
+        sa.Column("changes", sa.Text(), nullable=True),
+        sa.Column("action", sa.String(8), nullable=True),
+        sa.Column("target", _ID, nullable=True),
         sqlite_with_rowid=False,
     )
     meshes = sa.table("meshes", sa.column("id"), sa.column("revision"))

@@ -214,6 +214,7 @@ def import_arrays(
     progress: Progress | None = None,
     replace: bool = False,
     orient: bool = False,
+    history: bool = True,
 ) -> ImportReport:
     """Store a polygon soup as a new mesh, built set-based.
 
@@ -262,6 +263,9 @@ def import_arrays(
         polygon, and nothing is stored; with ``on_error="split"`` it is
         oriented along a spanning tree of its polygons instead and cut along
         the edges where its polygons then disagree (``report.cut``).
+    history : bool
+        Whether the new mesh keeps its revisions (`Store.create_mesh`); the
+        import is its revision 1 either way.
 
     Returns
     -------
@@ -291,12 +295,13 @@ def import_arrays(
     (2, 6, {0: [4], 1: [5]})
     """
     _check_on_error(on_error)
-    _check_flags(replace=replace, orient=orient)
+    _check_flags(replace=replace, orient=orient, history=history)
     if not replace:
         _check_name(store, name)
     pos, soup = _as_positions(positions), ragged(polygons)
     return _import(
-        store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace, orient=orient
+        store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace, orient=orient,
+        history=history,
     )
 
 
@@ -361,7 +366,7 @@ def _file_properties(data: FileData, built, soup: Ragged, source: str | None) ->
 def _import(
     store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *,
     lines=None, source=None, index_base=0, data: FileData | None = None, replace: bool = False,
-    orient: bool = False,
+    orient: bool = False, history: bool = True,
 ):
     """Decide, then write: nothing is stored unless every check has passed."""
     if progress is not None:
@@ -405,7 +410,7 @@ def _import(
         exc.skipped = first
         raise exc
     columns = _file_properties(data, built, soup, source) if data is not None else []
-    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace)
+    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace, history)
     declared = [spec for spec, _, _ in columns]
     return ImportReport(
         mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared, flipped, copies, cut
@@ -413,7 +418,8 @@ def _import(
 
 
 def _write(
-    store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=(), replace=False
+    store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=(), replace=False,
+    history=True,
 ) -> "Mesh":
     """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block).
 
@@ -438,7 +444,7 @@ def _write(
     with session.scope():
         if replace and name in store.meshes():
             store.delete_mesh(name)
-        mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges)
+        mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, history=history)
         with session.editing(mesh.ref) as uow:
             uow.insert_bulk(BulkRows(tables, report), counters)
             for spec, ids, data in columns:
@@ -463,6 +469,7 @@ def import_file(
     progress: Progress | None = None,
     replace: bool = False,
     orient: bool = False,
+    history: bool = True,
 ) -> ImportReport:
     """Import an OFF, OBJ or PLY file (ASCII or binary) as a new mesh.
 
@@ -478,7 +485,7 @@ def import_file(
         The file; its format comes from its extension.
     name : str, optional
         The new mesh's name; by default the file name without extension.
-    on_error, allow_loops, allow_multi_edges, progress, replace, orient
+    on_error, allow_loops, allow_multi_edges, progress, replace, orient, history
         As for `import_arrays`.
 
     Returns
@@ -506,7 +513,7 @@ def import_file(
     kind = mesh_io.format_of(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
-    _check_flags(replace=replace, orient=orient)
+    _check_flags(replace=replace, orient=orient, history=history)
     if not replace:
         _check_name(store, name)
     read_progress = None
@@ -528,6 +535,7 @@ def import_file(
         data=FileData(soup.vertex_properties, soup.polygon_properties, soup.corner_properties),
         replace=replace,
         orient=orient,
+        history=history,
     )
 
 

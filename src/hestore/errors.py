@@ -53,6 +53,7 @@ __all__ = [
     "PolicyError",
     "EulerError",
     "NonOrientableError",
+    "ReadOnlyError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
@@ -95,10 +96,7 @@ class PropertyNotFoundError(HestoreError, KeyError):
 
 
 class RevisionNotFoundError(HestoreError, KeyError):
-    """A revision of a mesh that was never made or is no longer kept.
-
-    Until history is kept, only a mesh's current revision can be named.
-    """
+    """A revision of a mesh that was never made or is no longer kept (SPEC §4.1)."""
 
     def __str__(self) -> str:  # KeyError would show the message quoted
         return str(self.args[0]) if self.args else ""
@@ -184,6 +182,10 @@ class VertexNotFreeError(TopologyError):
 
 class PolicyError(TopologyError):
     """The mesh's policy forbids self-loops or parallel edges."""
+
+
+class ReadOnlyError(HestoreError):
+    """An edit of a read-only view of a mesh (``mesh.at(r)``): views of earlier revisions cannot change."""
 
 
 class NonOrientableError(TopologyError):

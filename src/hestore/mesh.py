@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, euler, interop, kernel, navigation, properties, schema, summary, validation
+from hestore import bulk, euler, history, interop, kernel, navigation, properties, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -160,11 +160,99 @@ class Mesh:
 
     @property
     def revision(self) -> int:
-        """Number of committed transactions that changed the mesh (plus the open one's, if it did)."""
+        """Number of committed transactions that changed the mesh (plus the open one's, if it did).
+
+        For a view of the past (`at`), the revision it shows.
+        """
+        if self.ref.revision is not None:
+            self.session.check()
+            return self.ref.revision
         rows = self._fetch("mesh_revision", _build_revision)
         if not rows:
             raise self.session.missing(self.ref)
         return rows[0][0]
+
+    # -- history (SPEC §4.1) -------------------------------------------------
+
+    @property
+    def is_view(self) -> bool:
+        """Whether this is a read-only view of a past revision (`at`)."""
+        return self.ref.revision is not None
+
+    def at(self, revision: int) -> "Mesh":
+        """A read-only view of the mesh as it was at ``revision`` (``at(0)`` is empty).
+
+        The view has the whole read API — handles, navigation, `stats`,
+        `check`, `to_arrays`, `to_networkx`, `export`, properties — and its
+        handles belong to it. Its reads cost in proportion to what changed
+        since ``revision``. Any edit raises `ReadOnlyError`.
+
+        Raises
+        ------
+        RevisionNotFoundError
+            The revision was never made or is no longer kept.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> mesh = store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        >>> mesh.remove_polygon(mesh.polygon(0))
+        >>> mesh.counts().polygons, mesh.at(1).counts().polygons, mesh.at(0).counts().vertices
+        (0, 1, 0)
+        """
+        base = self.ref.base or self.ref
+        number = history._revision_number(revision)
+        return Mesh(self.store, self.session.view(base, number), self.allow_loops, self.allow_multi_edges)
+
+    def history(self, limit: int | None = None) -> list[history.Revision]:
+        """The kept revisions from 1 up, newest first; see `hestore.history.history`."""
+        return history.history(self._base(), limit)
+
+    def diff(self, a: int, b: int) -> history.Diff:
+        """What differs between revisions ``a`` and ``b``; see `hestore.history.diff`."""
+        return history.diff(self._base(), a, b)
+
+    def undo(self) -> int:
+        """Undo the most recent change not yet undone, as a new revision (returned); see `hestore.history.undo`."""
+        return history.undo(self._writable())
+
+    def redo(self) -> int:
+        """Re-apply the most recently undone change, as a new revision (returned); see `hestore.history.redo`."""
+        return history.redo(self._writable())
+
+    def revert(self, revision: int) -> int:
+        """Make the mesh equal to ``at(revision)``, as a new revision (returned); see `hestore.history.revert`."""
+        return history.revert(self._writable(), revision)
+
+    def prune_history(self, keep: int) -> int:
+        """Keep only the newest ``keep`` revisions (the current one included); return the oldest kept.
+
+        Older revisions can no longer be viewed, diffed, reverted or undone
+        to; the rows that recorded them are deleted.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> store = hestore.open("sqlite://")
+        >>> mesh = store.create_mesh("m")
+        >>> for _ in range(3):
+        ...     _ = mesh.add_vertex()
+        >>> mesh.prune_history(keep=1), [r.number for r in mesh.history()]
+        (3, [3])
+        """
+        return history.prune(self._writable(), keep)
+
+    def _base(self) -> "Mesh":
+        if self.ref.revision is None:
+            return self
+        base = self.ref.base
+        return Mesh(self.store, base, self.allow_loops, self.allow_multi_edges)
+
+    def _writable(self) -> "Mesh":
+        if self.ref.revision is not None:
+            self.session.lock(self.ref)  # raises ReadOnlyError
+        return self
 
     def counts(self) -> Counts:
         """Number of vertices, half-edges, edges and polygons.

@@ -24,6 +24,7 @@ from sqlalchemy.schema import CreateTable
 
 from hestore import schema
 from hestore.columns import write_columns
+from hestore.journal import created_changes, to_history
 from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
 from hestore.unitofwork import (
     HE_COLUMNS,
@@ -133,27 +134,28 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple) -> str:
     )
 
 
-def _copy_to_history(table: sa.Table, history: sa.Table, *where) -> sa.Insert:
-    """``INSERT INTO <table>_history SELECT <row>, :r FROM <table> WHERE mesh_id = :m AND rev < :r AND ...``."""
-    names = [c.name for c in table.columns]
-    rows = sa.select(*table.columns, sa.bindparam("r", type_=sa.BigInteger())).where(
-        table.c.mesh_id == sa.bindparam("m"), table.c.rev < sa.bindparam("r"), *where
-    )
-    return history.insert().from_select([*names, "rev_to"], rows)
+def _of_property(table: sa.Table):
+    return table.c.property == sa.bindparam("q")
 
 
-def _pg_supersede(table: sa.Table, history: sa.Table, key: tuple) -> str:
-    """`Persistence.supersede` on PostgreSQL: the rows matched by ``unnest``-ed key arrays, in one statement."""
+def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
+    """`hestore.journal.to_history` on PostgreSQL for the rows matched by ``unnest``-ed key arrays: one statement."""
     q = '"{}"'.format
-    names = ", ".join(q(c.name) for c in table.columns)
-    picked = ", ".join(f"t.{q(c.name)}" for c in table.columns)
+    history = schema.HISTORY[table.name]
+    if what == "old":
+        names, picked, cond = [c.name for c in table.columns], [f"t.{q(c.name)}" for c in table.columns], "<"
+    else:
+        names = [c.name for c in table.primary_key]
+        picked, cond = [f"t.{q(c)}" for c in names], "="
     arrays = ", ".join("%b::bigint[]" for _ in key)
     match = " AND ".join(f"t.{q(c)} = u.{q(c)}" for c in key)
-    return (
-        f"INSERT INTO {q(history.name)} ({names}, {q('rev_to')}) SELECT {picked}, %s "
-        f"FROM {q(table.name)} AS t JOIN unnest({arrays}) AS u({', '.join(q(c) for c in key)}) ON {match} "
-        f"WHERE t.{q('mesh_id')} = %s AND t.{q('rev')} < %s"
+    sql = (
+        f"INSERT INTO {q(history.name)} ({', '.join(q(c) for c in names)}, {q('rev_to')}) "
+        f"SELECT {', '.join(picked)}, %s FROM {q(table.name)} AS t "
+        f"JOIN unnest({arrays}) AS u({', '.join(q(c) for c in key)}) ON {match} "
+        f"WHERE t.{q('mesh_id')} = %s AND t.{q('rev')} {cond} %s"
     )
+    return sql + (" ON CONFLICT DO NOTHING" if what == "new" else "")
 
 
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.
@@ -364,11 +366,16 @@ class Persistence:
                 "add_revision",
                 lambda: r.insert().values(
                     mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
-                    message=sa.bindparam("msg"),
+                    message=sa.bindparam("msg"), changes=sa.bindparam("ch"),
                 ),
             )
             now = datetime.now(timezone.utc)
-            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message})
+            counts = None
+            if changes.bulk is not None:
+                # Whole tables wrote no history: what they created is counted here, once.
+                n = {name: len(columns["id"]) for name, columns in changes.bulk.tables.items()}
+                counts = created_changes(n["vertices"], n["halfedges"], n["edges"], n["polygons"])
+            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message, "ch": counts})
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
         """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
@@ -406,7 +413,7 @@ class Persistence:
         """Delete every value of one property."""
         table = table_of(prop.dtype)
         if self._keep:
-            self._supersede_where(mesh_id, table, "property", {"q": prop.id}, lambda t: t.c.property == sa.bindparam("q"))
+            self._journal_where(mesh_id, table, "old", "property", {"q": prop.id}, _of_property)
 
         def build():
             return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
@@ -433,13 +440,16 @@ class Persistence:
         n = len(columns["id"])
         if not n:
             return
-        columns = {"property": np.full(n, prop.id, dtype=np.int64), **columns, "rev": np.full(n, self._rev)}
+        columns = {"property": np.full(n, prop.id, dtype=np.int64), **columns}
         if prop.dtype == "str" and self._pg:
             # Binary COPY has no text layout here: one INSERT over unnest-ed arrays instead.
             names = tuple(columns)
             self._write_columns(mesh_id, table, "insert", names, [list(columns[c]) for c in names])
             return
+        columns["rev"] = np.full(n, self._rev)
         write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, nulls=False)
+        if self._keep:
+            self._journal_where(mesh_id, table, "new", "property", {"q": prop.id}, _of_property)
 
     def _update_positions_staged(self, mesh_id: int, columns: dict) -> None:
         """Many positions on PostgreSQL: binary COPY into a scratch table, then one ``UPDATE ... FROM``.
@@ -463,40 +473,38 @@ class Persistence:
             )
 
         if self._keep:
-            self._supersede_where(
-                mesh_id, v, "staged", {}, lambda t: sa.exists().where(staging.c.mesh_id == t.c.mesh_id, staging.c.id == t.c.id)
+            self._journal_where(
+                mesh_id, v, "old", "staged", {},
+                lambda t: sa.exists().where(staging.c.mesh_id == t.c.mesh_id, staging.c.id == t.c.id),
             )
         self.st.get("update_positions_staged", build).run(cursor, {"r": self._rev})
         cursor.execute(f"TRUNCATE {staging.name}")
 
-    def supersede(self, mesh_id: int, table: sa.Table, key: tuple, columns: list[list]) -> None:
-        """Copy to history the row versions, matched by ``key`` columns, that an earlier revision wrote.
+    def journal(self, mesh_id: int, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
+        """`hestore.journal.to_history` for the rows matched by ``key`` columns: one statement.
 
-        Run before the statement that changes or deletes those rows; a row
-        this transaction wrote already (``rev`` is its revision) is not
-        copied again, so history keeps only the state before the
-        transaction. One statement: an ``executemany`` on SQLite, a join
-        with ``unnest``-ed arrays on PostgreSQL.
+        An ``executemany`` on SQLite, a join with ``unnest``-ed arrays on
+        PostgreSQL. A row written twice in one transaction is recorded once,
+        so history keeps the state before the transaction (it is net).
         """
-        history = schema.HISTORY[table.name]
         if self._pg:
-            sql = self._pg_sql.get(("supersede", table.name, key))
+            sql = self._pg_sql.get(("journal", what, table.name, key))
             if sql is None:
-                sql = self._pg_sql[("supersede", table.name, key)] = _pg_supersede(table, history, key)
+                sql = self._pg_sql[("journal", what, table.name, key)] = _pg_to_history(table, what, key)
             self.cursor().execute(sql, [self._rev, *columns, mesh_id, self._rev])
             return
-
-        def build():
-            match = [table.c[c] == sa.bindparam(c) for c in key]
-            return _copy_to_history(table, history, *match)
-
-        stmt = self.st.get(("supersede", table.name, key), build)
+        stmt = self.st.get(
+            ("journal", what, table.name, key),
+            lambda: to_history(table, what, "sqlite", *(table.c[c] == sa.bindparam(c) for c in key)),
+        )
         stmt.run_columns(self.cursor(), {"m": mesh_id, "r": self._rev}, dict(zip(key, columns)))
 
-    def _supersede_where(self, mesh_id: int, table: sa.Table, what: str, values: dict, where) -> None:
-        """`supersede` for every row a condition on ``table`` picks: one ``INSERT ... SELECT``."""
-        history = schema.HISTORY[table.name]
-        stmt = self.st.get(("supersede_where", table.name, what), lambda: _copy_to_history(table, history, where(table)))
+    def _journal_where(self, mesh_id: int, table: sa.Table, what: str, name: str, values: dict, where) -> None:
+        """`hestore.journal.to_history` for every row a condition on ``table`` picks: one ``INSERT ... SELECT``."""
+        stmt = self.st.get(
+            ("journal_where", what, table.name, name),
+            lambda: to_history(table, what, self.st.dialect.name, where(table)),
+        )
         stmt.run(self.cursor(), {"m": mesh_id, "r": self._rev, **values})
 
     def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
@@ -523,12 +531,19 @@ class Persistence:
         """`_write` for rows given as one list per column: one statement (two with history)."""
         if not columns or not len(columns[0]):
             return
-        if table.name in schema.HISTORY:
-            if what != "insert" and self._keep:
-                key = ("id",) if what == "update" else tuple(c for c in cols if table.c[c].primary_key)
-                self.supersede(mesh_id, table, key, [columns[cols.index(k)] for k in key])
-            if what != "delete":
-                cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
+        journal = table.name in schema.HISTORY and self._keep
+        if journal:
+            key = ("id",) if what == "update" else tuple(c for c in cols if table.c[c].primary_key)
+            keys = [columns[cols.index(k)] for k in key]
+            if what != "insert":
+                self.journal(mesh_id, table, "old", key, keys)
+        if table.name in schema.HISTORY and what != "delete":
+            cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
+        self._write_statement(mesh_id, table, what, cols, columns)
+        if journal and what in ("insert", "upsert"):
+            self.journal(mesh_id, table, "new", key, keys)
+
+    def _write_statement(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
         if self._pg:
             sql = self._pg_sql.get((what, table.name, cols))
             if sql is None:

@@ -215,6 +215,11 @@ revisions = sa.Table(
     sa.Column("number", _ID, primary_key=True),
     sa.Column("committed_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("message", sa.Text, nullable=True),
+    # JSON of SPEC's `changes` where a revision wrote no history (a bulk import, a copy); else NULL.
+    sa.Column("changes", sa.Text, nullable=True),
+    # "undo" / "redo" / "revert" and the revision it acted on; NULL for an ordinary revision.
+    sa.Column("action", sa.String(8), nullable=True),
+    sa.Column("target", _ID, nullable=True),
     sqlite_with_rowid=False,
 )
 

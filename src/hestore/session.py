@@ -50,6 +50,7 @@ the session's DBAPI cursor; nothing outside this module holds it.
 from __future__ import annotations
 
 from contextlib import contextmanager
+from datetime import datetime, timezone
 from threading import get_ident
 from typing import Any, Callable, Iterator
 
@@ -57,10 +58,14 @@ import sqlalchemy as sa
 
 from hestore import drivers, migrate, schema, urls
 from hestore.columns import read_columns, read_snapshot
+from hestore.journal import as_of, request_as_of, restore_statements, rows_at, to_history, touched
 from hestore.drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
+    InvalidInputError,
     MeshNotFoundError,
+    ReadOnlyError,
+    RevisionNotFoundError,
     SchemaVersionError,
     StoreError,
     WrongThreadError,
@@ -78,15 +83,20 @@ class MeshRef:
     the transaction that created the mesh is rolled back.
     """
 
-    __slots__ = ("id", "name", "alive")
+    __slots__ = ("id", "name", "alive", "revision", "base")
 
-    def __init__(self, mesh_id: int, name: str) -> None:
+    def __init__(self, mesh_id: int, name: str, revision: int | None = None, base: "MeshRef | None" = None) -> None:
         self.id = mesh_id
         self.name = name
         self.alive = True
+        #: None for the mesh itself; ``r`` for a read-only view of its revision ``r`` (`Session.view`).
+        self.revision = revision
+        #: The mesh a view belongs to (None for the mesh itself): the view lives and dies with it.
+        self.base = base
 
     def __repr__(self) -> str:
-        return f"MeshRef({self.id}, {self.name!r}{'' if self.alive else ', dead'})"
+        at = "" if self.revision is None else f" at {self.revision}"
+        return f"MeshRef({self.id}, {self.name!r}{at}{'' if self.alive else ', dead'})"
 
 
 class Snapshot:
@@ -101,18 +111,25 @@ class Snapshot:
         state, seen through an in-memory store's single connection).
     """
 
-    def __init__(self, connection: sa.Connection, mesh_id: int, revision: int, isolated: bool) -> None:
+    def __init__(
+        self, connection: sa.Connection, mesh_id: int, revision: int, isolated: bool, as_of: int | None = None
+    ) -> None:
         self._connection = connection
         self._mesh_id = mesh_id
+        self._as_of = as_of
         self.revision = revision
         self.isolated = isolated
 
     def columns(self, requests) -> list:
         """Columns of several tables of the mesh: `hestore.columns.read_columns`."""
+        if self._as_of is not None:
+            requests = [request_as_of(request, self._as_of) for request in requests]
         return read_columns(self._connection, self._mesh_id, requests)
 
     def rows(self, stmt) -> list[tuple]:
         """The rows of one Core statement (bound parameters given in it), in this state."""
+        if self._as_of is not None:
+            stmt = as_of(stmt, sa.literal(self._as_of))
         return [tuple(row) for row in self._connection.execute(stmt)]
 
 
@@ -175,6 +192,7 @@ class Session:
         self._closed = True
         self._scopes: list[str] = []
         self._uows: dict[int, UnitOfWork] = {}
+        self._message: str | None = None
         self._locked: set[int] = set()
         self._changed: set[int] = set()
         self._refs: dict[int, MeshRef] = {}
@@ -225,8 +243,16 @@ class Session:
 
     def _alive(self, ref: MeshRef) -> None:
         self.check()
-        if not ref.alive:
+        if not (ref.base or ref).alive:
             raise self._dead(ref)
+
+    def _writable(self, ref: MeshRef) -> None:
+        self._alive(ref)
+        if ref.revision is not None:
+            raise ReadOnlyError(
+                f"mesh {ref.name!r} at revision {ref.revision} is a read-only view of the past; "
+                "edit the mesh itself (or revert it to that revision)"
+            )
 
     @staticmethod
     def _dead(ref: MeshRef) -> MeshNotFoundError:
@@ -443,12 +469,23 @@ class Session:
         finally:
             self._scopes.pop()
 
-    def transaction(self):
+    @contextmanager
+    def transaction(self, message: str | None = None) -> Iterator[sa.Connection]:
         """A block: one transaction (nested: a savepoint) that commits or rolls back as a whole.
 
-        `hestore.Store.transaction` is this.
+        `hestore.Store.transaction` is this. ``message`` names the revisions
+        the block makes (the outermost block's message that is not None).
         """
-        return self._scope("block", savepoint=True)
+        if message is not None and not isinstance(message, str):
+            raise InvalidInputError(f"a transaction's message is a str, not {type(message).__name__}")
+        if self._message is None:
+            self._message = message
+        try:
+            with self._scope("block", savepoint=True) as conn:
+                yield conn
+        finally:
+            if not self._scopes:
+                self._message = None
 
     def scope(self):
         """One atomic step of several statements: its own transaction outside a block, a savepoint inside.
@@ -467,7 +504,7 @@ class Session:
         goes on. The mesh is locked for the transaction before its first
         change.
         """
-        self._alive(ref)
+        self._writable(ref)
         with self._scope("edit", savepoint=False):
             uow = self._uow(ref)
             if uow.staged:
@@ -486,7 +523,7 @@ class Session:
         waits for a writer and is rolled back. Inside a block it sees the
         block's state; the mesh is not locked for it.
         """
-        self._alive(ref)
+        self._writable(ref)
         if self._scopes:
             with self._guard("could not read"):
                 uow = self._uows.get(ref.id) or self._unlocked_uow(ref)
@@ -531,7 +568,7 @@ class Session:
         write; taking the lock first means nobody can change the mesh in
         between. Outside a transaction this does nothing: use it in `scope`.
         """
-        self._alive(ref)
+        self._writable(ref)
         if self._scopes:
             self._uow(ref)
 
@@ -559,7 +596,7 @@ class Session:
             if uow.dirty:
                 changes = uow.changes(0 if mesh_id in self._changed else 1)
                 try:
-                    self._persistence.write(changes)
+                    self._persistence.write(changes, self._message)
                 except BaseException:
                     # The cache and the database now disagree: only leaving the block repairs that.
                     self._failed = bool(self._scopes)
@@ -600,7 +637,11 @@ class Session:
         try:
             if self._uows:
                 self._flush()
-            stmt = self.statements.get(key, build)
+            if ref.revision is None:
+                stmt = self.statements.get(key, build)
+            else:
+                stmt = self.statements.get(("as_of", key), lambda: as_of(build(), sa.bindparam("asof")))
+                values["asof"] = ref.revision
             values["m"] = ref.id
             cur = self._cur
             cur.execute(stmt.sql, stmt.bind(values))
@@ -653,10 +694,225 @@ class Session:
                     revision = conn.execute(sa.select(m.c.revision).where(m.c.id == ref.id)).scalar()
                     if revision is None:
                         raise self.missing(ref)
-                    yield Snapshot(conn, ref.id, revision, bool(other) or not self._scopes)
+                    isolated = bool(other) or not self._scopes
+                    yield Snapshot(conn, ref.id, revision if ref.revision is None else ref.revision, isolated,
+                                   as_of=ref.revision)
             finally:
                 if other:
                     conn.close()
+
+    # -- history (SPEC §4.1) ------------------------------------------------
+
+    def _history_row(self, ref: MeshRef) -> tuple:
+        m = schema.meshes
+        row = self._conn.execute(
+            sa.select(m.c.revision, m.c.kept_from, m.c.history).where(m.c.id == ref.id)
+        ).first()
+        if row is None:
+            raise self.missing(ref)
+        return tuple(row)
+
+    def _kept(self, ref: MeshRef, revision: int) -> int:
+        """Check that ``revision`` of the mesh can be read; return the current revision."""
+        current, kept_from, keep = self._history_row(ref)
+        if revision == current:
+            return current
+        if revision < 0 or revision > current:
+            raise RevisionNotFoundError(
+                f"mesh {ref.name!r} has no revision {revision}: it is at revision {current}"
+            )
+        if not keep:
+            raise RevisionNotFoundError(
+                f"mesh {ref.name!r} keeps no history (created with history=False): only its current "
+                f"revision {current} can be read"
+            )
+        if revision < kept_from:
+            raise RevisionNotFoundError(
+                f"revision {revision} of mesh {ref.name!r} is no longer kept: its history was pruned, "
+                f"and the oldest revision kept is {kept_from}"
+            )
+        return current
+
+    def view(self, ref: MeshRef, revision: int) -> MeshRef:
+        """The identity of a read-only view of the mesh as it was at ``revision``.
+
+        Reads through it (`fetch`, `snapshot`) see that revision; edits raise
+        `ReadOnlyError`. It lives as long as the mesh does.
+
+        Raises
+        ------
+        RevisionNotFoundError
+            The revision was never made, or is no longer kept.
+        """
+        self._alive(ref)
+        with self._guard(f"could not read mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            self._kept(ref, revision)
+        return MeshRef(ref.id, ref.name, revision=revision, base=ref)
+
+    def revisions(self, ref: MeshRef, limit: int | None) -> list[tuple]:
+        """The kept revisions ``>= 1``, newest first: ``(number, committed_at, message, changes JSON or None)``."""
+        self._alive(ref)
+        r = schema.revisions
+        with self._guard(f"could not read the history of mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            _, kept_from, keep = self._history_row(ref)
+            if not keep:
+                return []
+            stmt = (
+                sa.select(r.c.number, r.c.committed_at, r.c.message, r.c.changes)
+                .where(r.c.mesh_id == ref.id, r.c.number >= max(kept_from, 1))
+                .order_by(r.c.number.desc())
+            )
+            if limit is not None:
+                stmt = stmt.limit(limit)
+            return [tuple(row) for row in self._conn.execute(stmt)]
+
+    def versions(self, ref: MeshRef, a: int, b: int, *, check: bool = True) -> dict[str, tuple[list, list]]:
+        """Per versioned table, its rows at revisions ``a`` and ``b`` of every key changed in between.
+
+        The catalogue of properties comes whole at both. From revision 0
+        (empty), every row at ``b``. One consistent snapshot; the cost grows
+        with the changes between the two, not with the mesh.
+
+        Raises
+        ------
+        RevisionNotFoundError
+            ``a`` or ``b`` is not kept (with ``check``; without, the rows
+            that history still has are read: a kept revision's changes).
+        """
+        self._alive(ref)
+        with self._guard(f"could not read the history of mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            with read_snapshot(self._conn):
+                for r in (a, b) if check else ():
+                    self._kept(ref, r)
+                lo, hi = min(a, b), max(a, b)
+                out = {}
+                for table in schema.VERSIONED:
+                    whole = table is schema.properties or lo == 0
+                    keys = None if whole else touched(table, sa.literal(lo), sa.literal(hi))
+                    rows = []
+                    for r in (a, b):
+                        if r == 0:
+                            rows.append([])
+                            continue
+                        stmt = rows_at(table, sa.literal(r), keys)
+                        rows.append([tuple(row) for row in self._conn.execute(stmt, {"m": ref.id})])
+                    out[table.name] = (rows[0], rows[1])
+                return out
+
+    def copy_rows(self, source: MeshRef, target: MeshRef, table: sa.Table) -> None:
+        """Copy the rows of ``table`` from one mesh (or a view of its past) to another, as its revision 1.
+
+        One ``INSERT ... SELECT``, reading the source as of its view's
+        revision; the copy starts without history.
+        """
+        cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
+        rows = sa.select(sa.literal(target.id, sa.Integer), *cols, sa.literal(1, sa.BigInteger)).where(
+            table.c.mesh_id == source.id
+        )
+        if source.revision is not None:
+            rows = as_of(rows, sa.literal(source.revision))
+        with self._guard(f"could not copy mesh {source.name!r}"):
+            self._conn.execute(table.insert().from_select([table.c.mesh_id, *cols, table.c.rev], rows))
+
+    def add_revision(self, ref: MeshRef, number: int, message: str | None, changes: str | None = None) -> None:
+        """Record revision ``number`` of a mesh written outside its unit of work (a copy), with its changes."""
+        with self._guard(f"could not write the history of mesh {ref.name!r}"):
+            self._conn.execute(
+                schema.revisions.insert().values(
+                    mesh_id=ref.id, number=number, committed_at=datetime.now(timezone.utc), message=message,
+                    changes=changes,
+                )
+            )
+
+    def actions(self, ref: MeshRef) -> list[tuple]:
+        """``(number, action, target)`` of every kept revision, oldest first (what undo and redo replay)."""
+        self._alive(ref)
+        r = schema.revisions
+        with self._guard(f"could not read the history of mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            _, kept_from, keep = self._history_row(ref)
+            if not keep:
+                return []
+            stmt = (
+                sa.select(r.c.number, r.c.action, r.c.target)
+                .where(r.c.mesh_id == ref.id, r.c.number >= max(kept_from, 1))
+                .order_by(r.c.number)
+            )
+            return [tuple(row) for row in self._conn.execute(stmt)]
+
+    def restore(self, ref: MeshRef, target: int, message: str, action: str, acted_on: int) -> int:
+        """Commit a new revision of the mesh whose rows equal those at ``target``; return its number.
+
+        Set-based (`hestore.journal.restore_statements`), recorded in history
+        like any edit: ids, positions and property values come back as they
+        were, and the id counters do not move back, so no id is handed out
+        twice. Its own transaction, or a savepoint of the open block, which
+        must not have changed the mesh already.
+
+        Raises
+        ------
+        RevisionNotFoundError
+            ``target`` is not kept.
+        InvalidInputError
+            The open block has already changed the mesh.
+        """
+        self._writable(ref)
+        if ref.id in self._changed:
+            raise InvalidInputError(
+                f"{action} makes a revision of its own, but this block has already changed mesh {ref.name!r}: "
+                f"call it outside the block, or before the block's other edits of the mesh"
+            )
+        with self._scope("step", savepoint=True) as conn:
+            self._flush()
+            uow = self._uow(ref)  # the writer lock, and the revision this makes
+            current = self._kept(ref, target)
+            if not uow.history:
+                raise RevisionNotFoundError(
+                    f"mesh {ref.name!r} keeps no history (created with history=False): there is nothing to {action}"
+                )
+            revision = uow.revision
+            dialect = self._engine.dialect.name
+            for table in schema.VERSIONED:
+                for stmt in restore_statements(table, target, revision):
+                    conn.execute(stmt, {"m": ref.id})
+                conn.execute(to_history(table, "new", dialect), {"m": ref.id, "r": revision})
+            m = schema.meshes
+            conn.execute(m.update().where(m.c.id == ref.id).values(revision=revision))
+            conn.execute(
+                schema.revisions.insert().values(
+                    mesh_id=ref.id, number=revision, committed_at=datetime.now(timezone.utc), message=message,
+                    action=action, target=acted_on,
+                )
+            )
+            assert current == revision - 1
+            self._changed.add(ref.id)
+            # Its cached rows are those of before: the next edit reads the restored ones.
+            del self._uows[ref.id]
+        return revision
+
+    def prune(self, ref: MeshRef, keep: int) -> int:
+        """Forget all but the newest ``keep`` revisions of the mesh (the current one included); return the oldest kept."""
+        self._writable(ref)
+        with self._scope("step", savepoint=True) as conn:
+            self._flush()
+            self._uow(ref)
+            current, kept_from, _ = self._history_row(ref)
+            oldest = max(kept_from, current - keep + 1, 0)
+            for history in schema.HISTORY.values():
+                # Rows superseded by the oldest kept revision stay: they say what it changed.
+                conn.execute(history.delete().where(history.c.mesh_id == ref.id, history.c.rev_to < oldest))
+            r = schema.revisions
+            conn.execute(r.delete().where(r.c.mesh_id == ref.id, r.c.number < oldest))
+            m = schema.meshes
+            conn.execute(m.update().where(m.c.id == ref.id).values(kept_from=oldest))
+        return oldest
 
     @contextmanager
     def traced(self, callback: Callable[[str], object]) -> Iterator[None]:

@@ -12,6 +12,7 @@ A store belongs to the thread that opened it: open one per thread or process.
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import unicodedata
 from contextlib import contextmanager
@@ -22,6 +23,7 @@ import sqlalchemy as sa
 from hestore import bulk, interop, schema, urls
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, RevisionNotFoundError
 from hestore.mesh import Mesh
+from hestore.journal import created_changes
 from hestore.session import Session
 
 __all__ = ["open", "Store", "DEFAULT_URL"]
@@ -135,8 +137,11 @@ class Store:
         return self.session.in_transaction
 
     @contextmanager
-    def transaction(self) -> Iterator["Store"]:
+    def transaction(self, message: str | None = None) -> Iterator["Store"]:
         """A block whose edits commit together or not at all.
+
+        ``message`` is kept with the revision each changed mesh gets when
+        the block commits (`Mesh.history`).
 
         An exception leaving the block rolls everything in it back; nested
         blocks are savepoints. Reads inside see the block's own edits; other
@@ -163,12 +168,14 @@ class Store:
         >>> mesh.counts().edges, mesh.revision
         (1, 1)
         """
-        with self.session.transaction():
+        with self.session.transaction(message):
             yield self
 
     # -- the mesh catalogue -------------------------------------------------------
 
-    def create_mesh(self, name: str, *, allow_loops: bool = True, allow_multi_edges: bool = True) -> Mesh:
+    def create_mesh(
+        self, name: str, *, allow_loops: bool = True, allow_multi_edges: bool = True, history: bool = True
+    ) -> Mesh:
         """Create an empty mesh.
 
         Parameters
@@ -178,6 +185,10 @@ class Store:
             not blank, no control characters.
         allow_loops, allow_multi_edges : bool
             Whether self-loop edges and parallel edges may be added.
+        history : bool
+            Whether every revision is kept (SPEC §4.1). Without, nothing
+            is recorded: `Mesh.history` is empty and only the current
+            revision can be read.
 
         Returns
         -------
@@ -198,6 +209,8 @@ class Store:
         Mesh('part')
         """
         name = _checked_name(name)
+        if not isinstance(history, bool):
+            raise InvalidInputError(f"history is True or False, not {history!r}")
         m = schema.meshes
         with self.session.scope() as conn:
             if conn.execute(sa.select(m.c.id).where(m.c.name == name)).first() is not None:
@@ -214,6 +227,7 @@ class Store:
                         next_edge=0,
                         next_polygon=0,
                         next_property=0,
+                        history=history,
                     )
                     .returning(m.c.id)
                 ).scalar_one()
@@ -333,8 +347,8 @@ class Store:
         name, new_name : str
             The source and the copy.
         revision : int, optional
-            The source's revision to copy. Until history is kept, only its
-            current revision exists.
+            The source's revision to copy (default: its current one): any
+            kept revision, so a copy branches the mesh at that point.
 
         Raises
         ------
@@ -343,7 +357,7 @@ class Store:
         MeshExistsError
             A mesh is called ``new_name`` already.
         RevisionNotFoundError
-            ``revision`` is not the source's current revision.
+            ``revision`` was never made or is no longer kept.
 
         Examples
         --------
@@ -356,19 +370,18 @@ class Store:
         """
         new_name = _checked_name(new_name)
         source = self.mesh(name)
-        if revision is not None and (isinstance(revision, bool) or not isinstance(revision, int)):
+        if revision is not None and (isinstance(revision, bool) or not isinstance(revision, numbers.Integral)):
             raise InvalidInputError(f"a revision is an int, not {type(revision).__name__} {revision!r}")
         m = schema.meshes
         with self.session.scope() as conn:
             # Locked: the tables are read by several statements, and must not change between them.
             self.session.lock(source.ref)
             row = conn.execute(sa.select(m).where(m.c.id == source.id)).one()
-            if revision is not None and revision != row.revision:
-                raise RevisionNotFoundError(
-                    f"mesh {source.name!r} has no revision {revision} kept: history is not kept, so only "
-                    f"its current revision {row.revision} can be copied"
-                )
-            copy = self.create_mesh(new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges)
+            at = row.revision if revision is None else int(revision)
+            view = self.session.view(source.ref, at)  # checks that the revision is kept
+            copy = self.create_mesh(
+                new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges, history=row.history
+            )
             conn.execute(
                 m.update()
                 .where(m.c.id == copy.id)
@@ -380,10 +393,13 @@ class Store:
                     next_property=row.next_property,
                 )
             )
-            for table in reversed(schema.MESH_TABLES):  # catalogue before values
-                cols = [c for c in table.c if c.name != "mesh_id"]
-                rows = sa.select(sa.literal(copy.id, sa.BigInteger), *cols).where(table.c.mesh_id == source.id)
-                conn.execute(table.insert().from_select([table.c.mesh_id, *cols], rows))
+            for table in schema.VERSIONED:
+                self.session.copy_rows(view, copy.ref, table)
+            counts = copy.counts()
+            self.session.add_revision(
+                copy.ref, 1, f"copy of {source.name!r} at revision {at}",
+                created_changes(counts.vertices, counts.halfedges, counts.edges, counts.polygons),
+            )
         return copy
 
     # -- bulk ----------------------------------------------------------------------

@@ -1,0 +1,225 @@
+"""History of a mesh: its revisions, what changed between two, and going back (SPEC §4.1).
+
+This module owns the meaning of history on top of the row versions the
+session keeps: `Revision` and `Diff`, the net changes between two revisions
+(`diff`, computed from the rows that differ, so an element created and
+removed in between appears nowhere and a value written back unchanged is no
+change), the list of kept revisions (`history`), and the undo stack
+(`undo`, `redo`, `revert`). Reads of a past revision are the session's
+(`hestore.session.Session.view`); the mesh facade wraps them as
+``mesh.at(r)``.
+
+The undo stack is derived from what each kept revision records it did
+(an undo or redo of which revision), so it survives reconnecting and is the
+same for every process.
+"""
+
+from __future__ import annotations
+
+import json
+import numbers
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import TYPE_CHECKING
+
+from hestore import schema
+from hestore.errors import InvalidInputError, RevisionNotFoundError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from hestore.mesh import Mesh
+
+__all__ = ["Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of"]
+
+#: The element kinds whose changes are counted and listed.
+KINDS = ("vertex", "halfedge", "edge", "polygon")
+_ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
+_VALUE_TABLES = {t.name for t in schema.VALUE_TABLES}
+
+
+@dataclass(frozen=True)
+class Revision:
+    """One kept revision of a mesh.
+
+    Attributes
+    ----------
+    number : int
+        The revision (1 is the first; the mesh's ``revision`` is the latest).
+    committed_at : datetime
+        When it was written, in UTC (timezone-aware).
+    message : str or None
+        The transaction's message; None for a single call outside a block;
+        ``"undo of revision 7"``, ``"redo of revision 7"``, ``"revert to
+        revision 3"`` for those.
+    changes : dict
+        ``{kind: {"created": n, "removed": n, "changed": n}}`` for each kind
+        of element, net (see `Diff`).
+    """
+
+    number: int
+    committed_at: datetime
+    message: str | None
+    changes: dict = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Diff:
+    """What differs between two revisions of a mesh: ``{kind: sorted list of ids}`` per attribute.
+
+    Net: the state at one compared with the state at the other. An element
+    is *changed* when one of its stored references (SPEC §2), its position
+    or one of its property values differs; writing back an equal value is
+    no change, and an element created and removed in between appears
+    nowhere.
+    """
+
+    created: dict
+    removed: dict
+    changed: dict
+
+    def counts(self) -> dict:
+        """``{kind: {"created": n, "removed": n, "changed": n}}``."""
+        return {
+            k: {"created": len(self.created[k]), "removed": len(self.removed[k]), "changed": len(self.changed[k])}
+            for k in KINDS
+        }
+
+    def __bool__(self) -> bool:
+        return any(self.created[k] or self.removed[k] or self.changed[k] for k in KINDS)
+
+
+def _revision_number(value, what: str = "revision") -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InvalidInputError(f"a {what} is an int, not {type(value).__name__} {value!r}")
+    return int(value)
+
+
+def diff_of(versions: dict) -> Diff:
+    """A `Diff` from `hestore.session.Session.versions`'s rows at the two revisions."""
+    created, removed, changed = ({k: set() for k in KINDS} for _ in range(3))
+    for table, kind in _ELEMENT_TABLES.items():
+        before, after = ({row[0]: row for row in rows} for rows in versions[table])
+        created[kind] = set(after) - set(before)
+        removed[kind] = set(before) - set(after)
+        changed[kind] = {i for i in set(before) & set(after) if before[i] != after[i]}
+    catalogue_a, catalogue_b = versions[schema.properties.name]
+    kind_of = {row[0]: row[1] for row in catalogue_a}
+    kind_of.update({row[0]: row[1] for row in catalogue_b})
+    for table in _VALUE_TABLES:
+        before, after = ({row[:3]: row for row in rows} for rows in versions[table])
+        for key in set(before) ^ set(after) | {k for k in set(before) & set(after) if before[k] != after[k]}:
+            kind = kind_of.get(key[0])
+            if kind in changed:
+                changed[kind].add(key[1])
+    for kind in KINDS:
+        changed[kind] -= created[kind] | removed[kind]
+    return Diff(*({k: sorted(v[k]) for k in KINDS} for v in (created, removed, changed)))
+
+
+def diff(mesh: "Mesh", a: int, b: int) -> Diff:
+    """What differs between revisions ``a`` and ``b`` of ``mesh`` (``created``: in ``b``, not in ``a``).
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> mesh = store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+    >>> mesh.vertex(2).position = (0, 2, 0)
+    >>> d = mesh.diff(1, 2)
+    >>> d.changed["vertex"], d.created["vertex"]
+    ([2], [])
+    """
+    a, b = _revision_number(a), _revision_number(b)
+    return diff_of(mesh.session.versions(mesh.ref, a, b))
+
+
+def changes_of(mesh: "Mesh", number: int, stored: str | None) -> dict:
+    """The ``changes`` of one revision: stored for a bulk revision, else its diff with the one before."""
+    if stored is not None:
+        return json.loads(stored)
+    return diff_of(mesh.session.versions(mesh.ref, number - 1, number, check=False)).counts()
+
+
+def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
+    """The kept revisions of ``mesh`` from 1 up, newest first (at most ``limit``).
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> mesh = store.create_mesh("m")
+    >>> with store.transaction(message="two vertices"):
+    ...     a, b = mesh.add_vertex(), mesh.add_vertex()
+    >>> [(r.number, r.message, r.changes["vertex"]["created"]) for r in mesh.history()]
+    [(1, 'two vertices', 2)]
+    """
+    if limit is not None:
+        limit = _revision_number(limit, "limit")
+        if limit < 0:
+            raise InvalidInputError(f"limit must be at least 0, not {limit}")
+    return [
+        Revision(int(n), _utc(at), message, changes_of(mesh, int(n), stored))
+        for n, at, message, stored in mesh.session.revisions(mesh.ref, limit)
+    ]
+
+
+def _utc(at: datetime) -> datetime:
+    # SQLite gives back naive datetimes: they were written in UTC.
+    from datetime import timezone
+
+    return at if at.tzinfo is not None else at.replace(tzinfo=timezone.utc)
+
+
+def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
+    """The undo stack (revisions whose change can be undone) and the redo stack, oldest first.
+
+    Replayed from the kept revisions' actions: an ordinary revision (a
+    revert too) is pushed on the undo stack and clears the redo stack; an
+    undo moves its target to the redo stack; a redo pushes itself back.
+    """
+    undo_stack: list[int] = []
+    redo_stack: list[int] = []
+    for number, action, target in mesh.session.actions(mesh.ref):
+        if action == "undo":
+            if undo_stack and undo_stack[-1] == target:
+                undo_stack.pop()
+            redo_stack.append(target)
+        elif action == "redo":
+            if redo_stack and redo_stack[-1] == target:
+                redo_stack.pop()
+            undo_stack.append(number)
+        else:
+            undo_stack.append(number)
+            redo_stack.clear()
+    return undo_stack, redo_stack
+
+
+def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
+    """Commit a new revision whose content equals ``mesh.at(revision)``; return its number."""
+    revision = _revision_number(revision)
+    return mesh.session.restore(mesh.ref, revision, message or f"revert to revision {revision}", "revert", revision)
+
+
+def undo(mesh: "Mesh") -> int:
+    """Undo the most recent change not yet undone: a new revision equal to the state before it."""
+    undo_stack, _ = _stacks(mesh)
+    if not undo_stack:
+        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to undo")
+    target = undo_stack[-1]
+    return mesh.session.restore(mesh.ref, target - 1, f"undo of revision {target}", "undo", target)
+
+
+def redo(mesh: "Mesh") -> int:
+    """Re-apply the most recently undone change: a new revision equal to the state after it."""
+    _, redo_stack = _stacks(mesh)
+    if not redo_stack:
+        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to redo")
+    target = redo_stack[-1]
+    return mesh.session.restore(mesh.ref, target, f"redo of revision {target}", "redo", target)
+
+
+def prune(mesh: "Mesh", keep: int) -> int:
+    """Keep the newest ``keep`` revisions of ``mesh`` (at least 1: the current one); return the oldest kept."""
+    keep = _revision_number(keep, "number of revisions to keep")
+    if keep < 1:
+        raise InvalidInputError(f"keep must be at least 1 (the current revision), not {keep}")
+    return mesh.session.prune(mesh.ref, keep)
