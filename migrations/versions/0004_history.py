@@ -104,10 +104,12 @@ def upgrade() -> None:
 
 def downgrade() -> None:
     op.drop_table("revisions")
-    for name, _, _ in reversed(_VERSIONED):
+    for name, _, other in reversed(_VERSIONED):
         op.drop_index(f"ix_{name}_history_rev_to", table_name=f"{name}_history")
         op.drop_table(f"{name}_history")
-        with op.batch_alter_table(name, table_kwargs={"sqlite_with_rowid": False}) as batch:
+        # Float columns are declared without a type on SQLite: reflection cannot tell, so say it.
+        floats = [sa.Column(c, t) for c, t in other if t is _FLOAT]
+        with op.batch_alter_table(name, table_kwargs={"sqlite_with_rowid": False}, reflect_args=floats) as batch:
             batch.drop_column("rev")
     with op.batch_alter_table("meshes") as batch:
         batch.drop_column("kept_from")

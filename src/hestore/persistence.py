@@ -395,7 +395,7 @@ class Persistence:
                 unset.setdefault(table, []).append((pid, i))
             else:
                 # An element's value always has the same number of rows: an upsert replaces it.
-                width = len(table.c) - 4
+                width = sum(1 for c in table.c if c.name.startswith("v"))
                 upserts.setdefault(table, []).extend((pid, i, *(row + (None,) * width)[: width + 1]) for row in rows)
         for table, keys in unset.items():
             write(mesh_id, table, "delete", _VALUE_KEY, keys)
