@@ -7,8 +7,9 @@ dispatches, and turns every error a user can cause (hestore's own, an
 unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
-Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE``, ``list``,
-``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``,
+Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE [--revision R]``, ``list``,
+``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``, ``log NAME [--limit N]``,
+``diff NAME A B``, ``undo NAME``, ``redo NAME``, ``revert NAME R``,
 ``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
 components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, through
 `hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
@@ -43,6 +44,7 @@ from collections.abc import Sequence
 import hestore
 from hestore import migrate, urls
 from hestore.errors import HestoreError, InvalidInputError, MeshExistsError, PolicyError
+from hestore.history import KINDS as ELEMENT_KINDS
 from hestore.progress import ProgressBar
 from hestore.values import KINDS as PROPERTY_KINDS
 
@@ -158,14 +160,76 @@ def _cmd_copy(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     with _open(args) as store:
         mesh = store.mesh(args.name)
+        if args.revision is not None:
+            mesh = mesh.at(args.revision)
         counts = mesh.counts()
         with ProgressBar(units=_EXPORT_UNITS) as bar:
             mesh.export(args.file, binary=not args.ascii, progress=bar)
     size = os.path.getsize(args.file)
+    at = "" if args.revision is None else f" at revision {args.revision}"
     print(
-        f"wrote {args.name!r} to {args.file}: {counts.vertices} vertices, "
+        f"wrote {args.name!r}{at} to {args.file}: {counts.vertices} vertices, "
         f"{counts.polygons} polygons, {size} bytes"
     )
+    return 0
+
+
+def _changes(changes: dict) -> str:
+    """``+3 −1 ~2 vertex, …``: how many of each kind were created (+), removed (−) and changed (~)."""
+    parts = []
+    for kind in ELEMENT_KINDS:
+        c = changes[kind]
+        marks = [f"{sign}{c[key]}" for sign, key in (("+", "created"), ("−", "removed"), ("~", "changed")) if c[key]]
+        if marks:
+            parts.append(f"{' '.join(marks)} {kind}")
+    return ", ".join(parts) or "no change"
+
+
+def _cmd_log(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        revisions = mesh.history(limit=args.limit)
+        current = mesh.revision
+    if not revisions:
+        print(f"mesh {args.name!r} is at revision {current} and keeps no history")
+        return 0
+    for r in revisions:
+        when = r.committed_at.strftime("%Y-%m-%d %H:%M:%S UTC")
+        message = f"  {r.message}" if r.message else ""
+        print(f"{r.number:>6}  {when}  {_changes(r.changes)}{message}")
+    return 0
+
+
+def _cmd_diff(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        d = store.mesh(args.name).diff(args.a, args.b)
+    print(f"{args.name}: revision {args.a} → {args.b}: {_changes(d.counts())}")
+    for what, ids in (("created", d.created), ("removed", d.removed), ("changed", d.changed)):
+        for kind in ELEMENT_KINDS:
+            if ids[kind]:
+                shown = ", ".join(map(str, ids[kind][:20])) + (", ..." if len(ids[kind]) > 20 else "")
+                print(f"  {what} {kind} {shown}")
+    return 0
+
+
+def _cmd_undo(args: argparse.Namespace) -> int:
+    return _went_back(args, lambda mesh: mesh.undo())
+
+
+def _cmd_redo(args: argparse.Namespace) -> int:
+    return _went_back(args, lambda mesh: mesh.redo())
+
+
+def _cmd_revert(args: argparse.Namespace) -> int:
+    return _went_back(args, lambda mesh: mesh.revert(args.revision))
+
+
+def _went_back(args: argparse.Namespace, step) -> int:
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        number = step(mesh)
+        latest = mesh.history(limit=1)[0]
+    print(f"{args.name}: {latest.message}: now revision {number} ({_changes(latest.changes)})")
     return 0
 
 
@@ -573,7 +637,7 @@ def build_parser() -> argparse.ArgumentParser:
     copy.add_argument("new_name", metavar="NEW", help="the copy's name (no mesh may have it)")
     copy.add_argument(
         "--revision", metavar="R", type=int, default=None,
-        help="the revision to copy (until history is kept: only the current one)",
+        help="the revision to copy (default: the current one): branches the mesh there",
     )
     copy.set_defaults(func=_cmd_copy)
 
@@ -589,7 +653,33 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument(
         "--ascii", action="store_true", help="write ASCII PLY instead of binary (OFF and OBJ are always text)"
     )
+    exp.add_argument(
+        "--revision", metavar="R", type=int, default=None, help="write the mesh as it was at revision R"
+    )
     exp.set_defaults(func=_cmd_export)
+
+    log = commands.add_parser(
+        "log", help="the mesh's revisions, newest first: when, what changed (+created −removed ~changed), message"
+    )
+    log.add_argument("name", metavar="NAME", help="the mesh")
+    log.add_argument("--limit", metavar="N", type=int, default=None, help="show at most N revisions")
+    log.set_defaults(func=_cmd_log)
+    diff = commands.add_parser("diff", help="what differs between two revisions of a mesh")
+    diff.add_argument("name", metavar="NAME", help="the mesh")
+    diff.add_argument("a", metavar="A", type=int, help="the earlier revision")
+    diff.add_argument("b", metavar="B", type=int, help="the later revision")
+    diff.set_defaults(func=_cmd_diff)
+    for name, func, text in (
+        ("undo", _cmd_undo, "undo the mesh's most recent change not yet undone (a new revision)"),
+        ("redo", _cmd_redo, "re-apply the most recently undone change (a new revision)"),
+    ):
+        step = commands.add_parser(name, help=text)
+        step.add_argument("name", metavar="NAME", help="the mesh")
+        step.set_defaults(func=func)
+    revert = commands.add_parser("revert", help="make the mesh equal to an earlier revision (a new revision)")
+    revert.add_argument("name", metavar="NAME", help="the mesh")
+    revert.add_argument("revision", metavar="R", type=int, help="the revision to go back to")
+    revert.set_defaults(func=_cmd_revert)
 
     listing = commands.add_parser("list", help="list the meshes: counts and revision of each")
     listing.set_defaults(func=_cmd_list)
