@@ -24,14 +24,13 @@ from typing import TYPE_CHECKING
 
 from hestore import schema
 from hestore.errors import InvalidInputError, RevisionNotFoundError
+from hestore.journal import KINDS
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
 __all__ = ["Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of"]
 
-#: The element kinds whose changes are counted and listed.
-KINDS = ("vertex", "halfedge", "edge", "polygon")
 _ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
 _VALUE_TABLES = {t.name for t in schema.VALUE_TABLES}
 

@@ -26,12 +26,10 @@ from sqlalchemy.sql.visitors import replacement_traverse
 
 from hestore import schema
 
-__all__ = ["to_history", "as_of", "request_as_of", "touched", "rows_at", "restore_statements", "created_changes", "KINDS", "ELEMENT_TABLES"]
+__all__ = ["to_history", "as_of", "request_as_of", "touched", "rows_at", "restore_statements", "created_changes"]
 
-#: The element kinds of SPEC §4.1's ``changes``, and their tables.
+#: The element kinds of SPEC §4.1's ``changes``.
 KINDS = ("vertex", "halfedge", "edge", "polygon")
-ELEMENT_TABLES = {"vertex": schema.vertices, "halfedge": schema.halfedges, "edge": schema.edges,
-                  "polygon": schema.polygons}
 
 
 def created_changes(vertices: int, halfedges: int, edges: int, polygons: int) -> str:
@@ -72,7 +70,9 @@ def _versions_at(source: sa.FromClause, revision: Any) -> sa.Subquery:
     table = source if isinstance(source, sa.Table) else source.element
     history = schema.HISTORY[table.name].alias(f"{source.name}_h")
     current = sa.select(*source.c).where(source.c.rev <= revision)
-    old = sa.select(*(history.c[c.name] for c in source.c)).where(history.c.rev <= revision, history.c.rev_to > revision)
+    old = sa.select(*(history.c[c.name] for c in source.c)).where(
+        history.c.rev <= revision, history.c.rev_to > revision
+    )
     return sa.union_all(current, old).subquery(f"{source.name}_at")
 
 
@@ -96,7 +96,8 @@ def as_of(statement, revision: Any):
     subs: dict[int, sa.Subquery] = {}
     for source in find_tables(statement, include_aliases=True):
         table = source if isinstance(source, sa.Table) else getattr(source, "element", None)
-        if isinstance(table, sa.Table) and schema.metadata.tables.get(table.name) is table and table.name in schema.HISTORY:
+        versioned = isinstance(table, sa.Table) and table.name in schema.HISTORY
+        if versioned and schema.metadata.tables.get(table.name) is table:
             subs[id(source)] = _versions_at(source, revision)
     if not subs:
         return statement

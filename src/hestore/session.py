@@ -898,7 +898,7 @@ class Session:
         return revision
 
     def prune(self, ref: MeshRef, keep: int) -> int:
-        """Forget all but the newest ``keep`` revisions of the mesh (the current one included); return the oldest kept."""
+        """Forget all but the newest ``keep`` revisions (the current one included); return the oldest kept."""
         self._writable(ref)
         with self._scope("step", savepoint=True) as conn:
             self._flush()

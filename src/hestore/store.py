@@ -21,9 +21,9 @@ from typing import Iterator
 import sqlalchemy as sa
 
 from hestore import bulk, interop, schema, urls
-from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, RevisionNotFoundError
-from hestore.mesh import Mesh
+from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError
 from hestore.journal import created_changes
+from hestore.mesh import Mesh
 from hestore.session import Session
 
 __all__ = ["open", "Store", "DEFAULT_URL"]
