@@ -1248,7 +1248,6 @@ def test_log(capsys, db_url):
     assert (code, out) == (0, "mesh 'bare' is at revision 1 and keeps no history\n")
 
 
-@pytest.mark.xfail(strict=True, reason="`log --limit 0` says the mesh keeps no history")
 def test_log_limit_zero_prints_nothing(capsys, url):
     build_history(url)
     code, out, err = run(capsys, "--db", url, "log", "sq", "--limit", "0")

@@ -301,7 +301,6 @@ def test_upgrade_from_0003_of_a_mesh_at_a_later_revision(db_url, engine):
         assert mesh.counts() == hestore.Counts(3, 6, 3, 1) and mesh.vertex(1)["t"] == 7.0
 
 
-@pytest.mark.xfail(strict=True, reason="the first kept revision of a mesh upgraded at revision > 1 reports no change")
 def test_the_first_kept_revision_of_an_upgraded_mesh_reports_its_content_whatever_its_number(db_url, engine):
     _triangle_at_0003(engine, 5)
     migrate.upgrade_database(db_url)

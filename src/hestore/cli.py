@@ -190,7 +190,8 @@ def _cmd_log(args: argparse.Namespace) -> int:
         mesh = store.mesh(args.name)
         revisions = mesh.history(limit=args.limit)
         current = mesh.revision
-    if not revisions:
+        kept = bool(revisions) or bool(mesh.history(limit=1)) or current == 0
+    if not kept:
         print(f"mesh {args.name!r} is at revision {current} and keeps no history")
         return 0
     for r in revisions:

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 from hestore import schema
 from hestore.errors import InvalidInputError, RevisionNotFoundError
 from hestore.journal import KINDS
+from hestore.values import property_of, value_of
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -34,7 +35,7 @@ __all__ = [
 ]
 
 _ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
-_VALUE_TABLES = {t.name for t in schema.VALUE_TABLES}
+_VALUE_TABLES = [t.name for t in schema.VALUE_TABLES]
 
 
 @dataclass(frozen=True)
@@ -104,17 +105,28 @@ def diff_of(versions: dict) -> Diff:
         removed[kind] = set(before) - set(after)
         changed[kind] = {i for i in set(before) & set(after) if before[i] != after[i]}
     catalogue_a, catalogue_b = versions[schema.properties.name]
-    kind_of = {row[0]: row[1] for row in catalogue_a}
-    kind_of.update({row[0]: row[1] for row in catalogue_b})
+    declared = {row[0]: property_of(*row) for row in [*catalogue_a, *catalogue_b]}
     for table in _VALUE_TABLES:
-        before, after = ({row[:3]: row for row in rows} for rows in versions[table])
-        for key in set(before) ^ set(after) | {k for k in set(before) & set(after) if before[k] != after[k]}:
-            kind = kind_of.get(key[0])
-            if kind in changed:
-                changed[kind].add(key[1])
+        # Compared as values, not rows: an element without a row has the default, so writing the
+        # default it already had, or unsetting a stored default, changes nothing.
+        found: dict = {}
+        for side, rows in enumerate(versions[table]):
+            for row in rows:
+                found.setdefault(row[:2], ([], []))[side].append(row[2:])
+        for (pid, i), (before, after) in found.items():
+            prop = declared.get(pid)
+            if prop is not None and not _same(value_of(prop, before), value_of(prop, after)):
+                changed[prop.kind].add(i)
     for kind in KINDS:
         changed[kind] -= created[kind] | removed[kind]
     return Diff(*({k: sorted(v[k]) for k in KINDS} for v in (created, removed, changed)))
+
+
+def _same(x, y) -> bool:
+    """Equal values, NaN equal to NaN (a float value may be NaN; it is stored as NULL)."""
+    if isinstance(x, tuple) and isinstance(y, tuple):
+        return len(x) == len(y) and all(_same(p, q) for p, q in zip(x, y))
+    return x == y or (isinstance(x, float) and isinstance(y, float) and x != x and y != y)
 
 
 def diff(mesh: "Mesh", a: int, b: int) -> Diff:
@@ -203,6 +215,7 @@ def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
 
 def undo(mesh: "Mesh") -> int:
     """Undo the most recent change not yet undone: a new revision equal to the state before it."""
+    mesh.session.restorable(mesh.ref, "undo")
     undo_stack, _ = _stacks(mesh)
     if not undo_stack:
         raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to undo")
@@ -212,6 +225,7 @@ def undo(mesh: "Mesh") -> int:
 
 def redo(mesh: "Mesh") -> int:
     """Re-apply the most recently undone change: a new revision equal to the state after it."""
+    mesh.session.restorable(mesh.ref, "redo")
     _, redo_stack = _stacks(mesh)
     if not redo_stack:
         raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to redo")

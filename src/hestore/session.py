@@ -49,6 +49,7 @@ the session's DBAPI cursor; nothing outside this module holds it.
 
 from __future__ import annotations
 
+import weakref
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from threading import get_ident
@@ -83,7 +84,7 @@ class MeshRef:
     the transaction that created the mesh is rolled back.
     """
 
-    __slots__ = ("id", "name", "alive", "revision", "base")
+    __slots__ = ("id", "name", "alive", "revision", "base", "__weakref__")
 
     def __init__(self, mesh_id: int, name: str, revision: int | None = None, base: "MeshRef | None" = None) -> None:
         self.id = mesh_id
@@ -193,6 +194,8 @@ class Session:
         self._scopes: list[str] = []
         self._uows: dict[int, UnitOfWork] = {}
         self._message: str | None = None
+        # The views of each mesh this session made (weakly held), so that a prune can end those it removes.
+        self._views: dict[int, list] = {}
         self._locked: set[int] = set()
         self._changed: set[int] = set()
         self._refs: dict[int, MeshRef] = {}
@@ -243,7 +246,7 @@ class Session:
 
     def _alive(self, ref: MeshRef) -> None:
         self.check()
-        if not (ref.base or ref).alive:
+        if not ref.alive or not (ref.base or ref).alive:
             raise self._dead(ref)
 
     def _writable(self, ref: MeshRef) -> None:
@@ -255,7 +258,12 @@ class Session:
             )
 
     @staticmethod
-    def _dead(ref: MeshRef) -> MeshNotFoundError:
+    def _dead(ref: MeshRef) -> HestoreError:
+        if ref.revision is not None and (ref.base is None or ref.base.alive):
+            return RevisionNotFoundError(
+                f"revision {ref.revision} of mesh {ref.name!r} is gone: the transaction that made it was rolled "
+                "back, or its history was pruned"
+            )
         return MeshNotFoundError(
             f"mesh {ref.name!r} no longer exists: the transaction that created it was rolled back"
         )
@@ -749,8 +757,13 @@ class Session:
         with self._guard(f"could not read mesh {ref.name!r}"):
             if self._uows:
                 self._flush()
-            self._kept(ref, revision)
-        return MeshRef(ref.id, ref.name, revision=revision, base=ref)
+            current = self._kept(ref, revision)
+        view = MeshRef(ref.id, ref.name, revision=revision, base=ref)
+        if revision == current and ref.id in self._changed:
+            self._born.append(view)  # a revision of the open transaction: a rollback takes it away
+        views = [w for w in self._views.get(ref.id, ()) if w() is not None]
+        self._views[ref.id] = [*views, weakref.ref(view)]
+        return view
 
     def revisions(self, ref: MeshRef, limit: int | None) -> list[tuple]:
         """The kept revisions ``>= 1``, newest first: ``(number, committed_at, message, changes JSON or None)``."""
@@ -860,6 +873,15 @@ class Session:
             )
             return [tuple(row) for row in self._conn.execute(stmt)]
 
+    def restorable(self, ref: MeshRef, action: str) -> None:
+        """Raise unless the mesh may be restored now: `InvalidInputError` in a block that changed it already."""
+        self._writable(ref)
+        if ref.id in self._changed or (ref.id in self._uows and self._uows[ref.id].dirty):
+            raise InvalidInputError(
+                f"{action} makes a revision of its own, but this block has already changed mesh {ref.name!r}: "
+                f"call it outside the block, or before the block's other edits of the mesh"
+            )
+
     def restore(self, ref: MeshRef, target: int, message: str, action: str, acted_on: int) -> int:
         """Commit a new revision of the mesh whose rows equal those at ``target``; return its number.
 
@@ -876,12 +898,7 @@ class Session:
         InvalidInputError
             The open block has already changed the mesh.
         """
-        self._writable(ref)
-        if ref.id in self._changed:
-            raise InvalidInputError(
-                f"{action} makes a revision of its own, but this block has already changed mesh {ref.name!r}: "
-                f"call it outside the block, or before the block's other edits of the mesh"
-            )
+        self.restorable(ref, action)
         with self._scope("step", savepoint=True) as conn:
             self._flush()
             uow = self._uow(ref)  # the writer lock, and the revision this makes
@@ -926,6 +943,9 @@ class Session:
             conn.execute(r.delete().where(r.c.mesh_id == ref.id, r.c.number < oldest))
             m = schema.meshes
             conn.execute(m.update().where(m.c.id == ref.id).values(kept_from=oldest))
+            for view in self._views.get(ref.id, []):
+                if view() is not None and view().revision < oldest:
+                    view().alive = False
         return oldest
 
     @contextmanager
