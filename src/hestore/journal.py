@@ -28,7 +28,7 @@ from hestore import schema
 
 __all__ = [
     "to_history", "as_of", "request_as_of", "touched", "created", "rows_at", "restore_statements", "created_changes",
-    "COUNTED",
+    "COUNTED", "restored",
 ]
 
 #: The element kinds of SPEC §4.1's ``changes``.
@@ -71,19 +71,27 @@ def to_history(table: sa.Table, what: str, dialect: str, *where) -> sa.Insert:
     return insert(history).from_select([*names, "rev_to"], rows).on_conflict_do_nothing()
 
 
-def _versions_at(source: sa.FromClause, revision: Any) -> sa.Subquery:
-    """The rows of a versioned table (or an alias of one) as they were at ``revision``, same columns."""
+def _versions_at(source: sa.FromClause, revision: Any, mesh: Any = None) -> sa.Subquery:
+    """The rows of a versioned table (or an alias of one) as they were at ``revision``, same columns.
+
+    With ``mesh``, both halves are narrowed to that mesh inside the union: a database cannot always
+    push the outer condition in (SQLite never does for the right side of an outer join).
+    """
     table = source if isinstance(source, sa.Table) else source.element
     history = schema.HISTORY[table.name].alias(f"{source.name}_h")
-    current = sa.select(*source.c).where(source.c.rev <= revision)
+    mine = () if mesh is None else (source.c.mesh_id == mesh,)
+    theirs = () if mesh is None else (history.c.mesh_id == mesh,)
+    current = sa.select(*source.c).where(source.c.rev <= revision, *mine)
     old = sa.select(*(history.c[c.name] for c in source.c)).where(
-        history.c.rev <= revision, history.c.rev_to > revision
+        history.c.rev <= revision, history.c.rev_to > revision, *theirs
     )
     return sa.union_all(current, old).subquery(f"{source.name}_at")
 
 
-def as_of(statement, revision: Any):
+def as_of(statement, revision: Any, mesh: Any = None):
     """``statement`` reading every versioned table as it was at ``revision`` (a bind parameter or a literal).
+
+    ``mesh`` (the mesh's id, or its bind parameter) narrows every table read to that mesh.
 
     Each versioned table or alias of one the statement reads from is
     replaced by the union of its current rows written by ``revision`` at
@@ -104,7 +112,7 @@ def as_of(statement, revision: Any):
         table = source if isinstance(source, sa.Table) else getattr(source, "element", None)
         versioned = isinstance(table, sa.Table) and table.name in schema.HISTORY
         if versioned and schema.metadata.tables.get(table.name) is table:
-            subs[id(source)] = _versions_at(source, revision)
+            subs[id(source)] = _versions_at(source, revision, mesh)
     if not subs:
         return statement
 
@@ -231,3 +239,14 @@ def restore_statements(table: sa.Table, target: int, revision: int, since: dict)
         )
         statements.append(table.insert().from_select([n for n in names if n != "rev"] + ["rev"], back))
     return statements
+
+
+def restored(table: sa.Table, target: int, revision: int):
+    """The condition "this row of ``table`` came back from history in `restore_statements`" (by key, indexed)."""
+    history = schema.HISTORY[table.name]
+    key = [c for c in table.primary_key if c.name != "mesh_id"]
+    back = sa.select(*(history.c[c.name] for c in key)).where(
+        history.c.mesh_id == sa.bindparam("m"), history.c.rev <= target, history.c.rev_to > target,
+        history.c.rev_to < revision,
+    )
+    return sa.tuple_(*key).in_(back)

@@ -59,7 +59,16 @@ import sqlalchemy as sa
 
 from hestore import drivers, migrate, schema, urls
 from hestore.columns import read_columns, read_snapshot
-from hestore.journal import as_of, created, request_as_of, restore_statements, rows_at, to_history, touched
+from hestore.journal import (
+    as_of,
+    created,
+    request_as_of,
+    restore_statements,
+    restored,
+    rows_at,
+    to_history,
+    touched,
+)
 from hestore.drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
@@ -649,7 +658,9 @@ class Session:
             if ref.revision is None:
                 stmt = self.statements.get(key, build)
             else:
-                stmt = self.statements.get(("as_of", key), lambda: as_of(build(), sa.bindparam("asof")))
+                stmt = self.statements.get(
+                    ("as_of", key), lambda: as_of(build(), sa.bindparam("asof"), sa.bindparam("m"))
+                )
                 values["asof"] = ref.revision
             values["m"] = ref.id
             cur = self._cur
@@ -911,9 +922,12 @@ class Session:
             dialect = self._engine.dialect.name
             since = self._counters_after(ref, target)
             for table in schema.VERSIONED:
-                for stmt in restore_statements(table, target, revision, since):
+                statements = restore_statements(table, target, revision, since)
+                for stmt in statements:
                     conn.execute(stmt, {"m": ref.id})
-                conn.execute(to_history(table, "new", dialect), {"m": ref.id, "r": revision})
+                if len(statements) > 2:  # rows came back: those that did not exist before get their record
+                    conn.execute(to_history(table, "new", dialect, restored(table, target, revision)),
+                                 {"m": ref.id, "r": revision})
             m = schema.meshes
             conn.execute(m.update().where(m.c.id == ref.id).values(revision=revision))
             conn.execute(
