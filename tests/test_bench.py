@@ -28,6 +28,7 @@ OWN_HEADER = {
     "reads": "The floor's query plan",
     "properties": "Floor variants, every one measured",
     "euler": "Flat in mesh size",
+    "history": "Proportional to the changes since r",
 }
 
 
