@@ -1,6 +1,6 @@
 """Run every benchmark, one after the other (SPEC §9).
 
-    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties,euler,repair]
+    python bench/all.py [--quick] [--benchmarks edits,import,graph,reads,properties,euler,repair,history]
                         [--backends sqlite,postgresql]
 
 Each benchmark runs in its own process (``python bench/<name>.py``), never two
@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from _common import HERE, Parser, log, meshes_dir, print_table, run_command, selected_backends  # noqa: E402
 
-BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler", "repair")
+BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler", "repair", "history")
 TAKES_MESHES = ("import", "graph", "repair")  # the benchmarks that take --meshes-dir
 
 

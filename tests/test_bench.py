@@ -29,6 +29,7 @@ OWN_HEADER = {
     "properties": "Floor variants, every one measured",
     "euler": "Flat in mesh size",
     "repair": "Repair decisions alone",
+    "history": "Proportional to the changes since r",
 }
 #: The benchmarks that take ``--meshes-dir``; those that need the shared meshes even with ``--quick`` (repair reads
 #: small stand-ins of its files) are skipped where the meshes are missing, and fail under ``CI=true``.
