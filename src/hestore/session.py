@@ -930,10 +930,12 @@ class Session:
                                  {"m": ref.id, "r": revision})
             m = schema.meshes
             conn.execute(m.update().where(m.c.id == ref.id).values(revision=revision))
+            # Its id counters are the mesh's (a restore hands out no id): what later revisions create starts there.
+            counters = self._counters_after(ref, revision)
             conn.execute(
                 schema.revisions.insert().values(
                     mesh_id=ref.id, number=revision, committed_at=datetime.now(timezone.utc), message=message,
-                    action=action, target=acted_on,
+                    action=action, target=acted_on, **counters,
                 )
             )
             assert current == revision - 1
