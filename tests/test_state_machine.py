@@ -2430,13 +2430,9 @@ def test_rotation_oracle_examples(store, fixture):
 
 
 # --------------------------------------------------------------------------
-# Bugs the machine found (kept as strict xfails; the machine avoids each exact case)
+# Cases the machine found broken once (now fixed; the machine still steers clear of some of them)
 
 
-@pytest.mark.xfail(strict=True, raises=StoreError, reason=(
-    "BUG-H1: set_property_array with a masked entry for an element whose value an earlier revision "
-    "stored fails with StoreError (UNIQUE constraint on property_<table>_history): the ids to delete "
-    "are ids + unset (persistence._write_bulk_values), so the unset id is journalled twice"))
 def test_bug_h1_masked_entry_over_an_older_value(store):
     mesh = store.create_mesh("m")
     v = mesh.add_vertex()
@@ -2447,11 +2443,6 @@ def test_bug_h1_masked_entry_over_an_older_value(store):
     assert mesh.revision == 4
 
 
-@pytest.mark.xfail(strict=True, raises=pytest.fail.Exception, reason=(
-    "BUG-H2: an edit of a read-only view (mesh.at(r)) that has nothing to do returns normally instead of "
-    "raising ReadOnlyError: separate_nonmanifold_vertices() where no vertex is pinched returns {}, "
-    "set_positions([], empty) returns None (set_property_array with no ids and triangulate_polygon of a "
-    "triangle do raise ReadOnlyError)"))
 @pytest.mark.parametrize("edit", ["separate_nonmanifold_vertices", "set_positions"])
 def test_bug_h2_view_edit_with_nothing_to_do(store, edit):
     mesh = store.create_mesh("m")
@@ -2486,12 +2477,6 @@ def _edit_of_a_view(store, mesh):
         mesh.at(1).set_property_array("vertex", "t", [0], [1.0])
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "BUG-H3: in a block that has already changed the mesh, once a savepoint is rolled back (a nested block "
-    "rolled back, even an empty one; a set_property_array / set_positions refused inside its step, e.g. a "
-    "removed id; set_property_array on a view) the session drops its unit of work, and the new one takes "
-    "meshes.revision + 1, already bumped by this transaction: the block's later edits are stamped with "
-    "the next revision, so mesh.at(mesh.revision) misses them (and so do diff and history's changes)"))
 @pytest.mark.parametrize("trigger", [_nested_rollback, _refused_set_property_array, _refused_set_positions,
                                      _edit_of_a_view], ids=lambda f: f.__name__.strip("_"))
 def test_bug_h3_edit_after_a_rolled_back_savepoint(store, trigger):
@@ -2508,9 +2493,6 @@ def test_bug_h3_edit_after_a_rolled_back_savepoint(store, trigger):
     assert mesh.diff(1, 2).created["vertex"] == [1, 2]
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "BUG-H3 again: edits after an undo in the same block (allowed: the block had not changed the mesh "
-    "before the undo) are stamped with the next revision: at(revision) is not the mesh"))
 def test_bug_h3_edit_after_undo_in_one_block(store):
     mesh = store.create_mesh("m")
     mesh.add_vertex()  # revision 1
@@ -2522,10 +2504,6 @@ def test_bug_h3_edit_after_undo_in_one_block(store):
     assert [v.id for v in mesh.at(3).vertices()] == [0, 2]
 
 
-@pytest.mark.xfail(strict=True, raises=StoreError, reason=(
-    "BUG-H4: revert(r) in a block whose edits of the mesh are not flushed yet raises StoreError (a second "
-    "revisions row for the same number) instead of InvalidInputError: session.restore checks _changed "
-    "before flushing (undo and redo read the history first, which flushes, and raise InvalidInputError)"))
 def test_bug_h4_revert_in_a_block_with_unflushed_edits(store):
     mesh = store.create_mesh("m")
     mesh.add_vertex()

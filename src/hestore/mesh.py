@@ -883,7 +883,7 @@ class Mesh:
         >>> mesh.vertex(5).position, mesh.stats().pinched_vertices, mesh.stats().components
         ((0.0, 0.0, 0.0), 0, 2)
         """
-        pinched = summary.pinched_vertices(self)
+        pinched = summary.pinched_vertices(self._writable())
         if not pinched:
             return {}
         with self._edit() as uow:
@@ -936,7 +936,7 @@ class Mesh:
         >>> mesh.vertex(1).position
         (2.0, 0.0, 0.0)
         """
-        properties.set_positions(self, self._elements(vertices, Vertex), positions)
+        properties.set_positions(self._writable(), self._elements(vertices, Vertex), positions)
 
     def add_property(self, kind: str, name: str, dtype: str, *, shape: tuple = (), default=None) -> Property:
         """Declare a property on every element of a kind; see `hestore.properties.add_property`.
