@@ -169,7 +169,6 @@ from hestore.errors import (
     PropertyNotFoundError,
     ReadOnlyError,
     RevisionNotFoundError,
-    StoreError,
     TopologyError,
     VertexNotFreeError,
 )
