@@ -172,7 +172,7 @@ def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
             raise InvalidInputError(f"limit must be at least 0, not {limit}")
     return [
         Revision(int(n), _utc(at), message, changes_of(mesh, int(n), stored))
-        for n, at, message, stored in mesh.session.revisions(mesh.ref, limit)
+        for n, at, message, stored, _action, _target in mesh.session.revisions(mesh.ref, limit)
     ]
 
 
@@ -192,7 +192,7 @@ def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
     """
     undo_stack: list[int] = []
     redo_stack: list[int] = []
-    for number, action, target in mesh.session.actions(mesh.ref):
+    for number, _at, _message, _changes, action, target in mesh.session.revisions(mesh.ref, newest_first=False):
         if action == "undo":
             if undo_stack and undo_stack[-1] == target:
                 undo_stack.pop()

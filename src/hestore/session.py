@@ -776,8 +776,12 @@ class Session:
         self._views[ref.id] = [*views, weakref.ref(view)]
         return view
 
-    def revisions(self, ref: MeshRef, limit: int | None) -> list[tuple]:
-        """The kept revisions ``>= 1``, newest first: ``(number, committed_at, message, changes JSON or None)``."""
+    def revisions(self, ref: MeshRef, limit: int | None = None, *, newest_first: bool = True) -> list[tuple]:
+        """The kept revisions ``>= 1``: ``(number, committed_at, message, changes JSON or None, action, target)``.
+
+        ``action`` and ``target`` say what an undo, redo or revert did (None
+        for an ordinary revision): what `hestore.history` replays.
+        """
         self._alive(ref)
         r = schema.revisions
         with self._guard(f"could not read the history of mesh {ref.name!r}"):
@@ -787,9 +791,9 @@ class Session:
             if not keep:
                 return []
             stmt = (
-                sa.select(r.c.number, r.c.committed_at, r.c.message, r.c.changes)
+                sa.select(r.c.number, r.c.committed_at, r.c.message, r.c.changes, r.c.action, r.c.target)
                 .where(r.c.mesh_id == ref.id, r.c.number >= max(kept_from, 1))
-                .order_by(r.c.number.desc())
+                .order_by(r.c.number.desc() if newest_first else r.c.number)
             )
             if limit is not None:
                 stmt = stmt.limit(limit)
@@ -866,23 +870,6 @@ class Session:
                     changes=changes,
                 )
             )
-
-    def actions(self, ref: MeshRef) -> list[tuple]:
-        """``(number, action, target)`` of every kept revision, oldest first (what undo and redo replay)."""
-        self._alive(ref)
-        r = schema.revisions
-        with self._guard(f"could not read the history of mesh {ref.name!r}"):
-            if self._uows:
-                self._flush()
-            _, kept_from, keep = self._history_row(ref)
-            if not keep:
-                return []
-            stmt = (
-                sa.select(r.c.number, r.c.action, r.c.target)
-                .where(r.c.mesh_id == ref.id, r.c.number >= max(kept_from, 1))
-                .order_by(r.c.number)
-            )
-            return [tuple(row) for row in self._conn.execute(stmt)]
 
     def restorable(self, ref: MeshRef, action: str) -> None:
         """Raise unless the mesh may be restored now: `InvalidInputError` in a block that changed it already."""
