@@ -85,7 +85,7 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
 
     # One transaction for replace-and-build: if anything fails, the previous
     # demo mesh is still there, untouched.
-    with store.transaction():
+    with store.transaction(message="build the demo mesh"):
         replaced = MESH_NAME in store.meshes()
         if replaced:
             store.delete_mesh(MESH_NAME)
@@ -131,7 +131,7 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
 
     # Several edits, one transaction: the revision goes up by one.
     revision = mesh.revision
-    with store.transaction():
+    with store.transaction(message="close the fan's half-disc"):
         rim.append(mesh.add_vertex((-1.0, 0.0, 0.0)))
         fan.append(mesh.add_polygon([centre, rim[4], rim[5]]))
     out(
@@ -174,7 +174,7 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
     out("  nothing changed: counts and revision are as before")
 
     # Euler operators, on the fan and on the shapes manifold-only libraries refuse.
-    with store.transaction():
+    with store.transaction(message="Euler operators: split, flip, poke"):
         middle = mesh.split_edge(wire)  # a wire edge splits like any other
         diagonal = mesh.flip_edge(mesh.find_halfedge(centre, rim[2]).edge)
         inside = mesh.poke_polygon(monogon)  # the 1-gon becomes a triangle on its self-loop
