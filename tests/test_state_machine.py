@@ -1937,9 +1937,8 @@ class MeshMachine(RuleBasedStateMachine):
     def _history_step(self, op: str, r, data) -> None:
         call = self._history_call(op, r)
         if any(f.changed for f in self.stack):
-            # the open block has changed the mesh: its revision is an edit on top of the undo stack,
-            # which clears the redo stack; restoring makes a revision of its own, so it is refused
-            self.refused(call, RevisionNotFoundError if op == "redo" else InvalidInputError)
+            # the open block has changed the mesh: restoring makes a revision of its own, so it is refused
+            self.refused(call, InvalidInputError)
             return
         if self.stack:
             self._history_in_block(op, r, data)
@@ -1989,10 +1988,9 @@ class MeshMachine(RuleBasedStateMachine):
             assert n == self.committed_revision + 1 == self.mesh.revision
             frame.changed, frame.restore = True, plan
             self._after_restore(plan)
-            undo_stack, redo_stack = self._stacks_after(plan, n)
             again = data.draw(st.sampled_from(["undo", "redo", "revert"]), label="again")
-            empty = (again == "undo" and not undo_stack) or (again == "redo" and not redo_stack)
-            self.refused(self._history_call(again, 0), RevisionNotFoundError if empty else InvalidInputError)
+            # the block has changed the mesh now: a second restore is refused before anything else
+            self.refused(self._history_call(again, 0), InvalidInputError)
         if outer and data.draw(st.booleans(), label="commit"):
             self.commit_block()
             self.matches_model()
