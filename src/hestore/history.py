@@ -215,22 +215,22 @@ def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
 
 def undo(mesh: "Mesh") -> int:
     """Undo the most recent change not yet undone: a new revision equal to the state before it."""
-    mesh.session.restorable(mesh.ref, "undo")
-    undo_stack, _ = _stacks(mesh)
-    if not undo_stack:
-        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to undo")
-    target = undo_stack[-1]
-    return mesh.session.restore(mesh.ref, target - 1, f"undo of revision {target}", "undo", target)
+    return _step(mesh, "undo")
 
 
 def redo(mesh: "Mesh") -> int:
     """Re-apply the most recently undone change: a new revision equal to the state after it."""
-    mesh.session.restorable(mesh.ref, "redo")
-    _, redo_stack = _stacks(mesh)
-    if not redo_stack:
-        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to redo")
-    target = redo_stack[-1]
-    return mesh.session.restore(mesh.ref, target, f"redo of revision {target}", "redo", target)
+    return _step(mesh, "redo")
+
+
+def _step(mesh: "Mesh", action: str) -> int:
+    mesh.session.restorable(mesh.ref, action)
+    stack = _stacks(mesh)[0 if action == "undo" else 1]
+    if not stack:
+        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to {action}")
+    target = stack[-1]
+    state = target - 1 if action == "undo" else target  # before the change, or after it
+    return mesh.session.restore(mesh.ref, state, f"{action} of revision {target}", action, target)
 
 
 def prune(mesh: "Mesh", keep: int) -> int:
