@@ -674,6 +674,17 @@ def vacuum_analyze(spec: dict) -> None:
                 conn.execute(f"VACUUM (ANALYZE) {table}")
 
 
+def parse_cells(text: str) -> tuple[int, int]:
+    """``"50x100"`` → (50, 100) cells."""
+    try:
+        w, h = (int(x) for x in text.lower().replace("×", "x").split("x"))
+    except ValueError:
+        raise ValueError(f"--small takes WxH cells, such as 50x100, not {text!r}") from None
+    if w < 2 or h < 2:
+        raise ValueError("--small needs at least 2x2 cells")
+    return w, h
+
+
 def pg_copy_columns(cursor, exprs: list[str], rest: str, dtypes: list) -> list[np.ndarray]:
     """``SELECT exprs rest`` as numpy columns, through one binary ``COPY TO`` of one row of ``array_agg``s.
 

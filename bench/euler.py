@@ -102,12 +102,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import hestore  # noqa: E402
 from _common import (  # noqa: E402
-    print_profiles,
-    Statements,
-    Figure,
-    Parser,
-    Runner,
     child_main,
+    Figure,
     fmt_time,
     gc_paused,
     grid_arrays,
@@ -115,15 +111,20 @@ from _common import (  # noqa: E402
     maxrss,
     median,
     open_backend,
+    parse_cells,
+    Parser,
     pc,
     percentile,
     print_figures,
     print_machine,
     print_markdown,
+    print_profiles,
     print_table,
     profile_report,
+    Runner,
     selected_backends,
     settle,
+    Statements,
     url_of,
     vacuum_analyze,
     verdict,
@@ -165,17 +166,6 @@ class _Rollback(Exception):
 
 # ==========================================================================
 # The grids and their sites
-
-
-def parse_cells(text: str) -> tuple[int, int]:
-    """``"50x100"`` → (50, 100) cells."""
-    try:
-        w, h = (int(x) for x in text.lower().replace("×", "x").split("x"))
-    except ValueError:
-        raise ValueError(f"--small takes WxH cells, such as 50x100, not {text!r}") from None
-    if w < 2 or h < 2:
-        raise ValueError("--small needs at least 2x2 cells")
-    return w, h
 
 
 def cell_vertex(nx: int, i: int, j: int) -> int:

@@ -105,17 +105,16 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import hestore  # noqa: E402
 from hestore import schema  # noqa: E402
 from _common import (  # noqa: E402
-    Figure,
-    Parser,
-    Runner,
-    Statements,
     child_main,
+    Figure,
     fmt_time,
     gc_paused,
     grid_arrays,
     maxrss,
     median,
     open_backend,
+    parse_cells,
+    Parser,
     pc,
     percentile,
     pg_connect,
@@ -125,10 +124,12 @@ from _common import (  # noqa: E402
     print_profiles,
     print_table,
     profile_report,
+    Runner,
     selected_backends,
     settle,
-    timed,
+    Statements,
     time_each,
+    timed,
     url_of,
     vacuum_analyze,
     verdict,
@@ -155,17 +156,6 @@ def mesh_name(grid: str, history: bool) -> str:
 def grid_label(nx: int, ny: int) -> str:
     """A grid as the figures name it: its number of triangles."""
     return f"{2 * (nx - 1) * (ny - 1):,}"
-
-
-def parse_cells(text: str) -> tuple[int, int]:
-    """``"50x100"`` → (50, 100) cells."""
-    try:
-        w, h = (int(x) for x in text.lower().replace("×", "x").split("x"))
-    except ValueError:
-        raise ValueError(f"--small takes WxH cells, such as 50x100, not {text!r}") from None
-    if w < 2 or h < 2:
-        raise ValueError("--small needs at least 2x2 cells")
-    return w, h
 
 
 # ==========================================================================
