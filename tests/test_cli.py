@@ -1051,6 +1051,9 @@ def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url,
     proc = subprocess.Popen(
         [sys.executable, "-m", "hestore", "--db", cli_url, "import", str(source)],
         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # A shell without job control starts background jobs with Ctrl-C ignored, and children inherit
+        # that: give the import the terminal's default, as a user's shell does.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         deadline = time.monotonic() + 60
