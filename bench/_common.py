@@ -674,6 +674,18 @@ def vacuum_analyze(spec: dict) -> None:
                 conn.execute(f"VACUUM (ANALYZE) {table}")
 
 
+def timed_check(store: hestore.Store, name: str) -> dict:
+    """``mesh.check()`` of one stored mesh, timed (a correctness gate): seconds, violations, the first five,
+    and ``counts`` V/H/E/P."""
+    mesh = store.mesh(name)
+    t0 = time.perf_counter()
+    violations = mesh.check()
+    seconds = time.perf_counter() - t0
+    c = mesh.counts()
+    return {"seconds": seconds, "violations": len(violations), "examples": [str(v) for v in violations[:5]],
+            "counts": [c.vertices, c.halfedges, c.edges, c.polygons]}
+
+
 def parse_cells(text: str) -> tuple[int, int]:
     """``"50x100"`` → (50, 100) cells."""
     try:

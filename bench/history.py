@@ -130,6 +130,7 @@ from _common import (  # noqa: E402
     Statements,
     time_each,
     timed,
+    timed_check,
     url_of,
     vacuum_analyze,
     verdict,
@@ -626,11 +627,7 @@ def job_check(spec: dict) -> dict:
     out = {}
     for grid in GRIDS:
         with open_grid(spec, grid) as store:
-            mesh = store.mesh(mesh_name(grid, True))
-            t0 = time.perf_counter()
-            bad = mesh.check()
-            out[grid] = {"seconds": time.perf_counter() - t0, "violations": len(bad),
-                         "examples": [str(v) for v in bad[:3]], "counts": _counts(mesh)}
+            out[grid] = timed_check(store, mesh_name(grid, True))
     return out
 
 

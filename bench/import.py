@@ -75,13 +75,11 @@ from hestore import schema  # noqa: E402
 from hestore.arrays import Ragged  # noqa: E402
 from hestore.build import build  # noqa: E402
 from _common import (  # noqa: E402
-    FILES,
-    Figure,
-    Parser,
-    Runner,
     best_of,
     child_main,
     cpu_seconds,
+    Figure,
+    FILES,
     fmt_time,
     grid_arrays,
     import_mesh,
@@ -89,6 +87,7 @@ from _common import (  # noqa: E402
     maxrss,
     mesh_label,
     open_backend,
+    Parser,
     pg_connect,
     pg_copy_columns,
     pg_drop_schema,
@@ -100,12 +99,14 @@ from _common import (  # noqa: E402
     print_markdown,
     print_table,
     remove_sqlite,
+    Runner,
     selected_backends,
     selected_meshes,
     settle,
     sqlite_connect,
     sqlite_url,
     timed,
+    timed_check,
     url_of,
     verdict,
 )
@@ -632,13 +633,7 @@ def job_import(spec: dict) -> dict:
 
 def job_check(spec: dict) -> dict:
     with contextlib.closing(hestore.open(url_of(spec))) as store:
-        mesh = store.mesh(spec["mesh"])
-        t0 = time.perf_counter()
-        violations = mesh.check()
-        seconds = time.perf_counter() - t0
-        counts = mesh.counts()
-    return {"seconds": seconds, "violations": len(violations), "examples": [str(v) for v in violations[:5]],
-            "counts": [counts.vertices, counts.halfedges, counts.edges, counts.polygons]}
+        return timed_check(store, spec["mesh"])
 
 
 def _same_as_input(inp: Input, positions, offsets, indices) -> list[str]:

@@ -92,11 +92,9 @@ from hestore import io as formats  # noqa: E402
 from hestore.arrays import Ragged, ragged  # noqa: E402
 from hestore.build import build, orient  # noqa: E402
 from _common import (  # noqa: E402
-    FILES,
-    Figure,
-    Parser,
-    Runner,
     child_main,
+    Figure,
+    FILES,
     fmt_mib,
     fmt_time,
     grid_arrays,
@@ -105,15 +103,18 @@ from _common import (  # noqa: E402
     median,
     mesh_label,
     open_backend,
+    Parser,
     print_figures,
     print_machine,
     print_markdown,
     print_profiles,
     print_table,
+    Runner,
     selected_backends,
     selected_meshes,
     settle,
     timed,
+    timed_check,
     url_of,
     verdict,
 )
@@ -299,13 +300,7 @@ def job_import(spec: dict) -> dict:
 
 def job_check(spec: dict) -> dict:
     with contextlib.closing(hestore.open(url_of(spec))) as store:
-        mesh = store.mesh(spec["name"])
-        t0 = time.perf_counter()
-        violations = mesh.check()
-        seconds = time.perf_counter() - t0
-        counts = mesh.counts()
-    return {"seconds": seconds, "violations": len(violations), "examples": [str(v) for v in violations[:5]],
-            "counts": [counts.vertices, counts.edges, counts.polygons]}
+        return timed_check(store, spec["name"])
 
 
 JOBS = {"build": job_build, "import": job_import, "check": job_check}
@@ -534,7 +529,7 @@ def report(args, only, backends, builds, runs, checks, profiles, skipped, errors
                      f"{c['violations']} violation(s)")
         if c["violations"]:
             problems.append(f"{bname} {label}: check() found {c['violations']} violations, e.g. {c['examples']}")
-        if first and c["counts"] != [first[0]["vertices"], first[0]["edges"], first[0]["polygons"]]:
+        if first and [c["counts"][k] for k in (0, 2, 3)] != [first[0][k] for k in ("vertices", "edges", "polygons")]:
             problems.append(f"{bname} {label}: counts() {c['counts']} differ from the import report's")
     for bname in backends:
         for m in only:
