@@ -657,11 +657,6 @@ def job_import(spec: dict) -> dict:
     return out
 
 
-def _counts(mesh) -> list[int]:
-    c = mesh.counts()
-    return [c.vertices, c.halfedges, c.edges, c.polygons]
-
-
 def profile_difference(with_history: cProfile.Profile, without: cProfile.Profile, calls: int, top: int = 8) -> str:
     """Where the extra time goes: the functions whose own time grows most from the history=False profile to the
     history one (the driver's ``execute`` and ``executemany`` are where the SQL runs), per call of each."""
