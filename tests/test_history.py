@@ -1127,13 +1127,6 @@ def test_views_refuse_every_edit(store):
         "set_property_array": lambda: view.set_property_array("vertex", "t", [0], [1.0]),
         "setitem": lambda: v0.__setitem__("t", 2.0),
         "delitem": lambda: v0.__delitem__("t"),
-        "can_add_edge": lambda: view.can_add_edge(v0, v3),
-        "can_add_polygon": lambda: view.can_add_polygon([v0, v3, v2]),
-        "can_split_edge": lambda: view.can_split_edge(e),
-        "can_flip_edge": lambda: view.can_flip_edge(e),
-        "can_collapse_edge": lambda: view.can_collapse_edge(h),
-        "can_join_polygons": lambda: view.can_join_polygons(e),
-        "can_poke_polygon": lambda: view.can_poke_polygon(p),
         "undo": lambda: view.undo(),
         "redo": lambda: view.redo(),
         "revert": lambda: view.revert(1),
@@ -1154,6 +1147,21 @@ def test_views_refuse_every_edit(store):
     assert all("read-only" in m for m in refused.values())
     assert dump_all(store) == before and dump_all(url) == before and mesh.revision == 3
     assert snapshot(mesh.at(2)) == snapshot(view)
+    # the predicates answer: no operation can be done on a view, though each can on the mesh
+    predicates = {
+        "can_add_edge": lambda m: m.can_add_edge(m.vertex(0), m.vertex(3)),
+        "can_split_edge": lambda m: m.can_split_edge(m.edge(e.id)),
+        "can_flip_edge": lambda m: m.can_flip_edge(m.edge(e.id)),
+        "can_collapse_edge": lambda m: m.can_collapse_edge(m.halfedge(h.id)),
+        "can_join_polygons": lambda m: m.can_join_polygons(m.edge(e.id)),
+        "can_poke_polygon": lambda m: m.can_poke_polygon(m.polygon(p.id)),
+        "can_triangulate_polygon": lambda m: m.can_triangulate_polygon(m.polygon(p.id)),
+        "can_fill_hole": lambda m: m.can_fill_hole(m.halfedge(h.twin.id)),
+    }
+    assert {n: f(mesh) for n, f in predicates.items()} == dict.fromkeys(predicates, True)
+    assert {n: f(view) for n, f in predicates.items()} == dict.fromkeys(predicates, False)
+    assert view.can_add_polygon([v0, v2, v3]) is False and mesh.can_add_polygon([mesh.vertex(i) for i in (0, 2, 3)])
+    assert dump_all(store) == before
     # inside a block: refused, nothing changed, and the block goes on
     with store.transaction(message="after refusals"):
         for name in ("add_vertex", "setitem", "flip_edge", "undo", "revert"):

@@ -1842,25 +1842,42 @@ class MeshMachine(RuleBasedStateMachine):
         return out
 
     def expected_diff(self, a: int, b: int) -> dict:
-        """``{"created"|"removed"|"changed": {kind: sorted ids}}`` between revisions a and b, from their rows."""
+        """``{"created"|"removed"|"changed": {kind: sorted ids}}`` between revisions a and b, from their rows.
+
+        Values are compared as values (SPEC §4.1: writing back an equal value is no change): an element
+        without a value row has its property's default, so a row holding the default is no row.
+        """
         A, B = self.rows[a], self.rows[b]
-        kind_of = {r[0]: r[1] for r in A["properties"] + B["properties"]}
+        declared = {r[0]: (r[1], r[2]) for r in A["properties"] + B["properties"]}  # id -> (kind, name)
 
         def values(rows):
             out = {}
             for t in VALUE_TABLES:
                 for r in rows[t.name]:
-                    out.setdefault((kind_of[r[0]], r[1]), []).append(r)
+                    out.setdefault((r[0], r[1]), []).append(r)
             return out
 
+        def value(name, rows):
+            if not rows:
+                return PROP_DEFAULT[name]
+            (r,) = rows  # every value of these properties fits one row
+            if name in ("t", "uv"):
+                floats = tuple(math.nan if x is None else x for x in r[3:])  # NaN is stored as NULL
+                return floats[0] if name == "t" else floats[:2]
+            return r[3]
+
         va, vb = values(A), values(B)
+        moved = {kind: set() for kind in KINDS}
+        for key in set(va) | set(vb):
+            kind, name = declared[key[0]]
+            if not same(value(name, va.get(key)), value(name, vb.get(key))):
+                moved[kind].add(key[1])
         out = {"created": {}, "removed": {}, "changed": {}}
         for kind in KINDS:
             ea, eb = A[kind], B[kind]
             out["created"][kind] = sorted(set(eb) - set(ea))
             out["removed"][kind] = sorted(set(ea) - set(eb))
-            out["changed"][kind] = sorted(i for i in set(ea) & set(eb)
-                                          if ea[i] != eb[i] or va.get((kind, i)) != vb.get((kind, i)))
+            out["changed"][kind] = sorted(i for i in set(ea) & set(eb) if ea[i] != eb[i] or i in moved[kind])
         return out
 
     def _record(self, d) -> None:
@@ -2287,6 +2304,7 @@ def _run(url: str, max_examples: int, steps: int) -> None:
             suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
             phases=phases,
             database=None,
+            print_blob=True,  # a failure in CI can be replayed with the @reproduce_failure it prints
         ),
     )
 

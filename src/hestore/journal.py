@@ -22,13 +22,15 @@ import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.sql.util import find_tables
+from sqlalchemy.sql import operators, visitors
 from sqlalchemy.sql.visitors import replacement_traverse
 
 from hestore import schema
+from hestore.statements import indexed_by
 
 __all__ = [
-    "to_history", "as_of", "request_as_of", "touched", "created", "rows_at", "restore_statements", "created_changes",
-    "COUNTED", "restored",
+    "to_history", "as_of", "request_as_of", "touched", "created", "rows_at", "changed_rows", "restore_statements",
+    "created_changes", "COUNTED", "COUNTERS", "restored",
 ]
 
 #: The element kinds of SPEC §4.1's ``changes``.
@@ -71,21 +73,71 @@ def to_history(table: sa.Table, what: str, dialect: str, *where) -> sa.Insert:
     return insert(history).from_select([*names, "rev_to"], rows).on_conflict_do_nothing()
 
 
-def _versions_at(source: sa.FromClause, revision: Any, mesh: Any = None) -> sa.Subquery:
+def _versions_at(source: sa.FromClause, revision: Any, mesh: Any = None, where: Any = None) -> sa.Subquery:
     """The rows of a versioned table (or an alias of one) as they were at ``revision``, same columns.
 
     With ``mesh``, both halves are narrowed to that mesh inside the union: a database cannot always
-    push the outer condition in (SQLite never does for the right side of an outer join).
+    push the outer condition in (SQLite never does for the right side of an outer join). ``where``
+    (a condition on ``source`` alone) is copied into both halves the same way.
     """
-    table = source if isinstance(source, sa.Table) else source.element
+    table = _versioned(source)
     history = schema.HISTORY[table.name].alias(f"{source.name}_h")
     mine = () if mesh is None else (source.c.mesh_id == mesh,)
     theirs = () if mesh is None else (history.c.mesh_id == mesh,)
+    if where is not None:
+        mine += (where,)
+        theirs += (_moved(where, {source: history}),)
     current = sa.select(*source.c).where(source.c.rev <= revision, *mine)
+    if where is not None:
+        # SQLite plans without statistics: name the index the condition fixes, as the hot reads do.
+        fixed = _fixed(where, source) | {"mesh_id"}
+        by_key = {c.name for c in table.primary_key} <= fixed
+        for index in () if by_key else sorted(table.indexes, key=lambda ix: ix.name):
+            if {c.name for c in index.columns} <= fixed:
+                current = indexed_by(current, source, index.name)
+                break
     old = sa.select(*(history.c[c.name] for c in source.c)).where(
         history.c.rev <= revision, history.c.rev_to > revision, *theirs
     )
     return sa.union_all(current, old).subquery(f"{source.name}_at")
+
+
+def _versioned(source: Any) -> sa.Table | None:
+    """The versioned table ``source`` is or aliases, else None."""
+    table = source if isinstance(source, sa.Table) else getattr(source, "element", None)
+    if isinstance(table, sa.Table) and table.name in schema.HISTORY and schema.metadata.tables.get(table.name) is table:
+        return table
+    return None
+
+
+def _moved(expr: Any, columns: dict) -> Any:
+    """``expr`` with the columns of each ``{from: to}`` read from ``to`` (a from clause or a column mapping)."""
+
+    def replace(element):
+        owner = getattr(element, "table", None)
+        if isinstance(element, sa.ColumnClause) and owner is not None:
+            to = columns.get(owner)
+            if to is not None:
+                return to.c[element.name] if hasattr(to, "c") else to[element.name]
+        return None
+
+    return replacement_traverse(expr, {}, replace)
+
+
+def _fixed(condition: Any, source: Any) -> set[str]:
+    """The columns of ``source`` that the terms of ``condition`` (a conjunction) set equal to something."""
+    fixed = set()
+    for term in _conjuncts(condition):
+        if getattr(term, "operator", None) is operators.eq:
+            for side in (term.left, term.right):
+                if isinstance(side, sa.ColumnClause) and getattr(side, "table", None) is source:
+                    fixed.add(side.name)
+    return fixed
+
+
+def _on_key(join: sa.Join) -> bool:
+    """Whether ``join``'s condition fixes every primary-key column of its right side (at most one row matches)."""
+    return {c.name for c in _versioned(join.right).primary_key} <= _fixed(join.onclause, join.right)
 
 
 def as_of(statement, revision: Any, mesh: Any = None):
@@ -93,12 +145,16 @@ def as_of(statement, revision: Any, mesh: Any = None):
 
     ``mesh`` (the mesh's id, or its bind parameter) narrows every table read to that mesh.
 
-    Each versioned table or alias of one the statement reads from is
-    replaced by the union of its current rows written by ``revision`` at
-    the latest and its history rows that were current then; a condition on
-    the mesh or the key reaches both halves, so a point read stays two index
-    probes and the cost of a view grows with what changed since, not with
-    the mesh.
+    A versioned table (or alias of one) read on its own is replaced by the
+    union of its current rows written by ``revision`` at the latest and its
+    history rows that were current then; a condition on the mesh or the key
+    reaches both halves, so a point read stays two index probes. The right
+    side of an outer join needs more, since no database pushes a join
+    condition into a union there: a condition on that table alone (and
+    parameters) is copied into both halves; a condition that fixes its key
+    becomes two outer joins, one to the current rows and one to history,
+    whose columns are merged (at most one of them matches). So the cost of a
+    view grows with what changed since, not with the mesh.
 
     Examples
     --------
@@ -107,25 +163,112 @@ def as_of(statement, revision: Any, mesh: Any = None):
     >>> "edges_history" in sql and "rev_to" in sql
     True
     """
-    subs: dict[int, sa.Subquery] = {}
-    for source in find_tables(statement, include_aliases=True):
-        table = source if isinstance(source, sa.Table) else getattr(source, "element", None)
-        versioned = isinstance(table, sa.Table) and table.name in schema.HISTORY
-        if versioned and schema.metadata.tables.get(table.name) is table:
-            subs[id(source)] = _versions_at(source, revision, mesh)
-    if not subs:
+    sources = [s for s in find_tables(statement, include_aliases=True) if _versioned(s) is not None]
+    if not sources:
         return statement
+    # Where each source is read: a source read in one place only can be narrowed or joined anew.
+    reads: dict[int, int] = {}
+    joins: list[sa.Join] = []
+    nullable: set[int] = set()  # right sides of outer joins: a WHERE condition on them is not theirs to take
+    pushed: dict[int, list] = {id(source): [] for source in sources}
 
-    def replace(element):
-        sub = subs.get(id(element))
-        if sub is not None:
-            return sub
+    def parts(f):
+        if isinstance(f, sa.Join):
+            joins.append(f)
+            if f.isouter:
+                nullable.add(id(f.right))
+            return [*parts(f.left), *parts(f.right)]
+        return [f]
+
+    selects = [e for e in visitors.iterate(statement) if isinstance(e, sa.Select)]
+    own = {}
+    for select in selects:
+        own[id(select)] = {id(part) for f in select.get_final_froms() for part in parts(f)}
+        for i in own[id(select)]:
+            reads[i] = reads.get(i, 0) + 1
+    for select in selects:
+        for term in _conjuncts(select.whereclause):
+            source = _single_source(term)
+            if source is not None and id(source) in own[id(select)] and id(source) not in nullable:
+                pushed[id(source)].append(term)
+    merged: dict[int, tuple] = {}  # an outer join on the key of its right side -> (current, history)
+    columns: dict = {}  # a source -> the subquery replacing it, or a mapping of its columns
+    for join in joins:
+        right = join.right
+        if not (join.isouter and _versioned(right) is not None and reads.get(id(right)) == 1):
+            continue
+        if _single_source(join.onclause) is right:
+            pushed[id(right)].extend(_conjuncts(join.onclause))
+        elif _on_key(join):
+            table = _versioned(right)
+            current, history = table.alias(f"{right.name}_c"), schema.HISTORY[table.name].alias(f"{right.name}_h")
+            merged[id(join)] = (current, history)
+            columns[right] = {
+                c.name: sa.case((current.c.id.is_not(None), current.c[c.name]), else_=history.c[c.name])
+                for c in right.c
+            }
+    for source in sources:
+        if source not in columns:
+            terms = pushed[id(source)] if reads.get(id(source)) == 1 else []
+            columns[source] = _versions_at(source, revision, mesh, sa.and_(*terms) if terms else None)
+
+    def replace(element, keep=None):
+        if isinstance(element, sa.Join):
+            return rebuilt(element)
+        if isinstance(element, sa.FromClause):
+            to = columns.get(element)
+            return to if hasattr(to, "c") else None
         owner = getattr(element, "table", None)
-        if isinstance(element, sa.ColumnClause) and owner is not None and id(owner) in subs:
-            return subs[id(owner)].c[element.name]
+        if isinstance(element, sa.ColumnClause) and owner is not None and owner is not keep and owner in columns:
+            to = columns[owner]
+            return to.c[element.name] if hasattr(to, "c") else to[element.name]
         return None
 
+    def side(f):
+        if isinstance(f, sa.Join):
+            return rebuilt(f)
+        to = replace(f)
+        return f if to is None else to
+
+    def rebuilt(join: sa.Join) -> sa.Join:
+        left, right = side(join.left), join.right
+        plan = merged.get(id(join))
+        if plan is None:
+            on = replacement_traverse(join.onclause, {}, replace)
+            return sa.join(left, side(right), on, isouter=join.isouter, full=join.full)
+        current, history = plan
+        mine, theirs = (
+            replacement_traverse(_moved(join.onclause, {right: to}), {}, lambda e: replace(e, keep=right))
+            for to in (current, history)
+        )
+        narrow = (current.c.mesh_id == mesh,) if mesh is not None else ()
+        out = left.outerjoin(current, sa.and_(mine, current.c.rev <= revision, *narrow))
+        narrow = (history.c.mesh_id == mesh,) if mesh is not None else ()
+        valid = sa.and_(theirs, history.c.rev <= revision, history.c.rev_to > revision, *narrow)
+        return out.outerjoin(history, valid)
+
     return replacement_traverse(statement, {}, replace)
+
+
+def _conjuncts(condition: Any) -> list:
+    """The terms of a conjunction (a single condition is one term; None none)."""
+    if condition is None:
+        return []
+    if isinstance(condition, sa.sql.elements.BooleanClauseList) and condition.operator is operators.and_:
+        return [t for c in condition.clauses for t in _conjuncts(c)]
+    return [condition]
+
+
+def _single_source(term: Any) -> Any:
+    """The one versioned table or alias ``term`` reads, if it reads no other table; else None.
+
+    The tables a subquery of ``term`` reads from are its own: they do not count.
+    """
+    inner = {id(f) for e in visitors.iterate(term) if isinstance(e, sa.Select) for f in e.get_final_froms()}
+    tables = [t for t in find_tables(term, include_aliases=True, check_columns=True) if id(t) not in inner]
+    if tables and all(t is tables[0] for t in tables) and _versioned(tables[0]) is not None:
+        return tables[0]
+    return None
 
 
 def request_as_of(request: tuple, revision: int) -> tuple:
@@ -186,18 +329,38 @@ def created(table: sa.Table, start: dict, end: dict):
     return (table.c.id >= step * start[name]) & (table.c.id < step * end[name])
 
 
-def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None, new=None) -> sa.Select:
+def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None, new=None) -> sa.Select | sa.CompoundSelect:
     """The rows of ``table`` at ``revision`` (without ``mesh_id`` and ``rev``): all, or those with ``keys``.
 
-    ``new``: a condition that picks more rows (`created`'s).
+    ``new``: a condition that picks more rows (`created`'s). Each is a
+    select of its own, so each reaches the rows through the key.
     """
     cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
     stmt = sa.select(*cols).where(table.c.mesh_id == sa.bindparam("m"))
-    if keys is not None:
-        key = [c for c in table.primary_key if c.name != "mesh_id"]
-        picked = sa.tuple_(*key).in_(keys)
-        stmt = stmt.where(picked if new is None else sa.or_(picked, new))
-    return as_of(stmt, revision)
+    if keys is None:
+        return as_of(stmt, revision)
+    key = [c for c in table.primary_key if c.name != "mesh_id"]
+    picked = as_of(stmt.where(sa.tuple_(*key).in_(keys)), revision)
+    return picked if new is None else sa.union(picked, as_of(stmt.where(new), revision))
+
+
+#: The id counters of `COUNTED`, as ``changed_rows`` binds them (``:s_<name>`` at the start, ``:e_<name>`` after).
+COUNTERS = ("next_vertex", "next_edge", "next_polygon", "next_property")
+
+
+def changed_rows(table: sa.Table, whole: bool) -> sa.Select:
+    """`rows_at` revision ``:r`` of the keys changed in revisions ``(:lo, :hi]`` (``whole``: every row).
+
+    Bind parameters only (``:m``, ``:r``, ``:lo``, ``:hi`` and the counters
+    of `COUNTERS`), so one compiled statement per table serves every pair
+    of revisions.
+    """
+    if whole:
+        return rows_at(table, sa.bindparam("r"))
+    start = {n: sa.bindparam(f"s_{n}", type_=sa.BigInteger()) for n in COUNTERS}
+    end = {n: sa.bindparam(f"e_{n}", type_=sa.BigInteger()) for n in COUNTERS}
+    keys = touched(table, sa.bindparam("lo"), sa.bindparam("hi"))
+    return rows_at(table, sa.bindparam("r"), keys, created(table, start, end))
 
 
 def restore_statements(table: sa.Table, target: int, revision: int, since: dict) -> list:

@@ -24,6 +24,7 @@ from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
     InvariantViolationError,
+    ReadOnlyError,
     TopologyError,
     Violation,
 )
@@ -544,11 +545,14 @@ class Mesh:
     # -- Euler operators ----------------------------------------------------
 
     def _can(self, check, *args) -> bool:
-        """Whether an operation's checks pass: run in a dry run, nothing written, no lock taken."""
+        """Whether an operation's checks pass: run in a dry run, nothing written, no lock taken.
+
+        On a view of the past (`at`) every operation would raise `ReadOnlyError`: the answer is False.
+        """
         try:
             with self._edit(dry_run=True) as uow:
                 check(uow, *args)
-        except TopologyError:
+        except (TopologyError, ReadOnlyError):
             return False
         return True
 

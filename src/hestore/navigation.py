@@ -144,7 +144,9 @@ def vertex_row(mesh: "Mesh", v: int) -> tuple:
 def _star_query(targets: bool):
     def build():
         v, t = schema.vertices, _H.alias("t")
-        j = v.outerjoin(_H, sa.and_(_H.c.mesh_id == v.c.mesh_id, _H.c.origin == v.c.id))
+        # Joined on the parameters, not on v's columns: a view (`hestore.journal.as_of`) can then narrow
+        # the half-edges before the join.
+        j = v.outerjoin(_H, sa.and_(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin == sa.bindparam("i")))
         extra = [_H.c.edge, _H.c.polygon]
         if targets:
             j = j.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
@@ -229,7 +231,8 @@ def is_boundary_vertex(mesh: "Mesh", v: int) -> bool:
 
 def _build_ring():
     p, t = schema.polygons, _H.alias("t")
-    j = p.outerjoin(_H, sa.and_(_H.c.mesh_id == p.c.mesh_id, _H.c.polygon == p.c.id)).outerjoin(
+    # Joined on the parameters, as in `_star_query`.
+    j = p.outerjoin(_H, sa.and_(_H.c.mesh_id == sa.bindparam("m"), _H.c.polygon == sa.bindparam("i"))).outerjoin(
         t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)
     )
     stmt = (

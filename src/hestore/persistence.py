@@ -14,6 +14,8 @@ nothing of transactions.
 
 from __future__ import annotations
 
+import functools
+
 from datetime import datetime, timezone
 from typing import Any, Callable
 
@@ -25,7 +27,7 @@ from sqlalchemy.schema import CreateTable
 from hestore import schema
 from hestore.columns import write_columns
 from hestore.journal import created_changes, to_history
-from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by
+from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by, padded
 from hestore.unitofwork import (
     HE_COLUMNS,
     K_EDGE,
@@ -139,7 +141,11 @@ def _of_property(table: sa.Table):
 
 
 def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
-    """`hestore.journal.to_history` on PostgreSQL for the rows matched by ``unnest``-ed key arrays: one statement."""
+    """`hestore.journal.to_history` on PostgreSQL for the keys of ``unnest``-ed arrays, as a CTE of their write.
+
+    Parameters: ``old`` takes the revision, the key arrays, the mesh and the
+    revision again; ``new`` the revision, the mesh and the key arrays.
+    """
     q = '"{}"'.format
     history = schema.HISTORY[table.name]
     if what == "old":
@@ -149,10 +155,19 @@ def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
         picked, cond = [f"t.{q(c)}" for c in names], "="
     arrays = ", ".join("%b::bigint[]" for _ in key)
     match = " AND ".join(f"t.{q(c)} = u.{q(c)}" for c in key)
+    into = f"INSERT INTO {q(history.name)} ({', '.join(q(c) for c in names)}, {q('rev_to')}) "
+    unnest = f"unnest({arrays}) AS u({', '.join(q(c) for c in key)})"
+    if what == "new":
+        # Keys with no row before the statement: it runs as a CTE of the insert, on the old snapshot.
+        picked = ["p.m", *(f"u.{q(c)}" for c in names if c != "mesh_id")]
+        return (
+            f"{into}SELECT {', '.join(picked)}, p.r FROM (SELECT %s::bigint AS r, %s::bigint AS m) AS p, {unnest} "
+            f"WHERE NOT EXISTS (SELECT 1 FROM {q(table.name)} AS t WHERE t.{q('mesh_id')} = p.m AND {match}) "
+            "ON CONFLICT DO NOTHING"
+        )
     sql = (
-        f"INSERT INTO {q(history.name)} ({', '.join(q(c) for c in names)}, {q('rev_to')}) "
-        f"SELECT {', '.join(picked)}, %s FROM {q(table.name)} AS t "
-        f"JOIN unnest({arrays}) AS u({', '.join(q(c) for c in key)}) ON {match} "
+        f"{into}SELECT {', '.join(picked)}, %s FROM {q(table.name)} AS t "
+        f"JOIN {unnest} ON {match} "
         f"WHERE t.{q('mesh_id')} = %s AND t.{q('rev')} {cond} %s"
     )
     return sql + " ON CONFLICT DO NOTHING"
@@ -169,6 +184,50 @@ _CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
 _VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
 _HE_UPDATE = ("id", "origin", "next", "prev", "polygon")
+
+
+@functools.cache
+def _recording(name: str, what: str, cols: tuple) -> tuple[bool, tuple, tuple, tuple]:
+    """How a write of ``cols`` to table ``name`` is recorded in history.
+
+    ``(versioned, key, positions of the key in cols, records)``: records
+    ``"old"`` copies the rows as they were before the write, ``"new"`` marks
+    keys that did not exist. A value row may come back after it was deleted;
+    an element or property never does (its id is new), and what a revision
+    created is found from its id counters instead.
+    """
+    table = schema.metadata.tables[name]
+    key = ("id",) if what == "update" else tuple(c for c in cols if table.c[c].primary_key)
+    records: tuple = ("old",) if what in ("update", "delete") else ()
+    if what in ("insert", "upsert") and name in _VALUE_TABLE_NAMES:
+        records = ("new",) if what == "insert" else ("old", "new")
+    return name in schema.HISTORY, key, tuple(cols.index(k) for k in key), records
+
+
+def _mesh_update() -> sa.Update:
+    """The mesh's id counters after a flush, and its revision bumped by ``:bump``."""
+    ms = schema.meshes
+    return (
+        ms.update()
+        .where(ms.c.id == sa.bindparam("m"))
+        .values(
+            next_vertex=sa.bindparam("nv"),
+            next_edge=sa.bindparam("ne"),
+            next_polygon=sa.bindparam("np"),
+            next_property=sa.bindparam("nq"),
+            revision=ms.c.revision + sa.bindparam("bump"),
+        )
+    )
+
+
+def _revision_insert() -> sa.Insert:
+    """A kept revision's row: number, time, message, bulk ``changes`` and the id counters at its start."""
+    r = schema.revisions
+    return r.insert().values(
+        mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
+        message=sa.bindparam("msg"), changes=sa.bindparam("ch"), next_vertex=sa.bindparam("sv"),
+        next_edge=sa.bindparam("se"), next_polygon=sa.bindparam("sp"), next_property=sa.bindparam("sq"),
+    )
 
 
 class Persistence:
@@ -268,7 +327,7 @@ class Persistence:
                 keys = [sa.bindparam(f"i{k}") for k in range(size)]
                 return sa.select(v.c.id, v.c.x, v.c.y, v.c.z).where(v.c.mesh_id == sa.bindparam("m"), v.c.id.in_(keys))
 
-            values = {"m": mesh_id, **{f"i{k}": chunk[min(k, len(chunk) - 1)] for k in range(size)}}
+            values = {"m": mesh_id, **padded(chunk, size)}
             for i, x, y, z in self.st.get(("positions", size), build).rows(self.cursor(), values):
                 out[i] = None if x is None else (x, y, z)
         return out
@@ -298,8 +357,8 @@ class Persistence:
                     )
 
                 values = {"m": mesh_id}
-                values.update({f"i{k}": chunk[min(k, len(chunk) - 1)] for k in range(size)})
-                values.update({f"q{k}": pids[min(k, len(pids) - 1)] for k in range(psize)})
+                values.update(padded(chunk, size))
+                values.update(padded(pids, psize, "q"))
                 for row in self.st.get(("values", table.name, size, psize), build).rows(self.cursor(), values):
                     out.setdefault((row[0], row[1]), []).append(row[2:])
         return out
@@ -311,7 +370,7 @@ class Persistence:
 
         Every row written carries the transaction's revision (``rev``); a row
         version an earlier revision wrote is first copied to its table's
-        history twin (`supersede`), so history is recorded by the very
+        history twin (`hestore.journal.to_history`), so history is recorded by the very
         statements that change the rows. The first flush of a transaction
         (``changes.bump``) also adds the revision's row, with ``message``.
 
@@ -347,40 +406,25 @@ class Persistence:
             self._write_bulk(mesh_id, changes.bulk)
         if changes.properties is not None:
             self._write_properties(mesh_id, changes.properties)
-        ms = schema.meshes
-        upd_m = self.st.get(
-            "upd_mesh",
-            lambda: ms.update()
-            .where(ms.c.id == sa.bindparam("m"))
-            .values(
-                next_vertex=sa.bindparam("nv"),
-                next_edge=sa.bindparam("ne"),
-                next_polygon=sa.bindparam("np"),
-                next_property=sa.bindparam("nq"),
-                revision=ms.c.revision + sa.bindparam("bump"),
-            ),
-        )
         nv, ne, np_, nq = changes.counters
-        upd_m.run(self.cursor(), {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump})
+        values = {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump}
         if changes.bump and changes.history:
-            r = schema.revisions
-            add = self.st.get(
-                "add_revision",
-                lambda: r.insert().values(
-                    mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
-                    message=sa.bindparam("msg"), changes=sa.bindparam("ch"), next_vertex=sa.bindparam("sv"),
-                    next_edge=sa.bindparam("se"), next_polygon=sa.bindparam("sp"), next_property=sa.bindparam("sq"),
-                ),
-            )
-            now = datetime.now(timezone.utc)
             counts = None
             if changes.bulk is not None:
                 # Whole tables wrote no history: what they created is counted here, once.
                 n = {name: len(columns["id"]) for name, columns in changes.bulk.tables.items()}
                 counts = created_changes(n["vertices"], n["halfedges"], n["edges"], n["polygons"])
             sv, se, sp, sq = changes.start
-            add.run(self.cursor(), {"m": mesh_id, "n": changes.revision, "at": now, "msg": message, "ch": counts,
-                                    "sv": sv, "se": se, "sp": sp, "sq": sq})
+            values.update(n=changes.revision, at=datetime.now(timezone.utc), msg=message, ch=counts,
+                          sv=sv, se=se, sp=sp, sq=sq)
+            if self._pg:
+                # The revision's row rides on the counters' update: one round trip.
+                self.st.get("upd_mesh_added", lambda: _mesh_update().add_cte(_revision_insert().cte("added"))).run(
+                    self.cursor(), values
+                )
+                return
+            self.st.get("add_revision", _revision_insert).run(self.cursor(), values)
+        self.st.get("upd_mesh", _mesh_update).run(self.cursor(), values)
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
         """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
@@ -485,18 +529,26 @@ class Persistence:
         self.st.get("update_positions_staged", build).run(cursor, {"r": self._rev})
         cursor.execute(f"TRUNCATE {staging.name}")
 
-    def journal(self, mesh_id: int, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
-        """`hestore.journal.to_history` for the rows matched by ``key`` columns: one statement.
+    def _journal(self, mesh_id: int, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
+        """`hestore.journal.to_history` on SQLite for the rows matched by ``key`` columns.
 
-        An ``executemany`` on SQLite, a join with ``unnest``-ed arrays on
-        PostgreSQL. A row written twice in one transaction is recorded once,
-        so history keeps the state before the transaction (it is net).
+        Rows picked by id: one statement per `MAX_IN` ids; by a longer key
+        (a value's property and element): one ``executemany``. A row written
+        twice in one transaction is recorded once, so history keeps the state
+        before the transaction (it is net).
         """
-        if self._pg:
-            sql = self._pg_sql.get(("journal", what, table.name, key))
-            if sql is None:
-                sql = self._pg_sql[("journal", what, table.name, key)] = _pg_to_history(table, what, key)
-            self.cursor().execute(sql, [self._rev, *columns, mesh_id, self._rev])
+        if key == ("id",):
+            ids = columns[0]
+            for start in range(0, len(ids), MAX_IN):
+                chunk = ids[start : start + MAX_IN]
+                size = in_list_bucket(len(chunk))
+
+                def build(size=size):
+                    ids = [sa.bindparam(f"i{k}") for k in range(size)]
+                    return to_history(table, what, "sqlite", table.c.id.in_(ids))
+
+                values = {"m": mesh_id, "r": self._rev, **padded(chunk, size)}
+                self.st.get(("journal", what, table.name, size), build).run(self.cursor(), values)
             return
         stmt = self.st.get(
             ("journal", what, table.name, key),
@@ -533,22 +585,43 @@ class Persistence:
             self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)])
 
     def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
-        """`_write` for rows given as one list per column: one statement (two with history)."""
+        """`_write` for rows given as one list per column: one statement (up to three on SQLite with history)."""
         if not columns or not len(columns[0]):
             return
-        journal = table.name in schema.HISTORY and self._keep
-        if journal:
-            key = ("id",) if what == "update" else tuple(c for c in cols if table.c[c].primary_key)
-            keys = [columns[cols.index(k)] for k in key]
-            if what != "insert":
-                self.journal(mesh_id, table, "old", key, keys)
-        if table.name in schema.HISTORY and what != "delete":
+        versioned, key, at, records = _recording(table.name, what, cols)
+        if versioned and what != "delete":
             cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
+        if not (versioned and self._keep and records):
+            self._write_statement(mesh_id, table, what, cols, columns)
+            return
+        keys = [columns[i] for i in at]
+        if self._pg:
+            self._write_recorded(mesh_id, table, what, cols, columns, records, key, keys)
+            return
+        if "old" in records:
+            self._journal(mesh_id, table, "old", key, keys)
         self._write_statement(mesh_id, table, what, cols, columns)
-        if journal and what in ("insert", "upsert") and table.name in _VALUE_TABLE_NAMES:
-            # A value row may come back after it was deleted; an element or property never does (its
-            # id is new), and what a revision created is found from its id counters instead.
-            self.journal(mesh_id, table, "new", key, keys)
+        if "new" in records:
+            self._journal(mesh_id, table, "new", key, keys)
+
+    def _write_recorded(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list],
+                        records: tuple, key: tuple, keys: list[list]) -> None:
+        """`_write_statement` with its history records on PostgreSQL: one statement, one round trip.
+
+        The records are data-modifying CTEs of the write. Every part of a
+        statement reads the snapshot from before it, so ``old`` copies the
+        rows as they were and ``new`` finds the keys that did not exist yet.
+        """
+        sql = self._pg_sql.get(("recorded", what, table.name, cols, records))
+        if sql is None:
+            parts = ", ".join(f"h_{r} AS ({_pg_to_history(table, r, key)})" for r in records)
+            sql = f"WITH {parts} {_pg_statement(table, what, cols)}"
+            self._pg_sql[("recorded", what, table.name, cols, records)] = sql
+        params: list = []
+        for r in records:
+            params += [self._rev, *keys, mesh_id, self._rev] if r == "old" else [self._rev, mesh_id, *keys]
+        params += [mesh_id, *columns] if what in ("insert", "upsert") else [*columns, mesh_id]
+        self.cursor().execute(sql, params)
 
     def _write_statement(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
         if self._pg:

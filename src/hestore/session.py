@@ -60,14 +60,13 @@ import sqlalchemy as sa
 from hestore import drivers, migrate, schema, urls
 from hestore.columns import read_columns, read_snapshot
 from hestore.journal import (
+    COUNTERS,
     as_of,
-    created,
+    changed_rows,
     request_as_of,
     restore_statements,
     restored,
-    rows_at,
     to_history,
-    touched,
 )
 from hestore.drivers import is_driver_error
 from hestore.errors import (
@@ -820,25 +819,23 @@ class Session:
                 for r in (a, b) if check else ():
                     self._kept(ref, r)
                 lo, hi = min(a, b), max(a, b)
-                start, end = self._counters_after(ref, lo), self._counters_after(ref, hi)
+                values = {"m": ref.id, "lo": lo, "hi": hi}
+                values.update({f"s_{n}": v for n, v in self._counters_after(ref, lo).items()})
+                values.update({f"e_{n}": v for n, v in self._counters_after(ref, hi).items()})
                 out = {}
                 for table in schema.VERSIONED:
                     whole = table is schema.properties or lo == 0
-                    keys = None if whole else touched(table, sa.literal(lo), sa.literal(hi))
-                    rows = []
-                    for r in (a, b):
-                        if r == 0:
-                            rows.append([])
-                            continue
-                        stmt = rows_at(table, sa.literal(r), keys, created(table, start, end))
-                        rows.append([tuple(row) for row in self._conn.execute(stmt, {"m": ref.id})])
+                    stmt = self.statements.get(
+                        ("versions", table.name, whole), lambda t=table, w=whole: changed_rows(t, w)
+                    )
+                    rows = [stmt.rows(self._cur, {**values, "r": r}) if r else [] for r in (a, b)]
                     out[table.name] = (rows[0], rows[1])
                 return out
 
     def _counters_after(self, ref: MeshRef, revision: int) -> dict:
         """The id counters after ``revision``: when the next one began, or the mesh's own after the last."""
         r, m = schema.revisions, schema.meshes
-        names = ("next_vertex", "next_edge", "next_polygon", "next_property")
+        names = COUNTERS
         row = self._conn.execute(
             sa.select(*(r.c[n] for n in names)).where(r.c.mesh_id == ref.id, r.c.number == revision + 1)
         ).first()

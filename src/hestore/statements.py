@@ -19,7 +19,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import sqlalchemy as sa
 
-__all__ = ["Prepared", "StatementCache", "in_list_bucket", "indexed_by"]
+__all__ = ["Prepared", "StatementCache", "in_list_bucket", "indexed_by", "padded"]
 
 #: Longest ``IN`` list compiled; longer lists are sent in chunks of this size.
 MAX_IN = 512
@@ -127,6 +127,16 @@ def in_list_bucket(n: int) -> int:
     while size < n and size < MAX_IN:
         size *= 2
     return size
+
+
+def padded(values: Sequence, size: int, prefix: str = "i") -> dict[str, Any]:
+    """Bind values ``{prefix}0 … {prefix}{size-1}`` for an ``IN`` list of ``size``, padded with the last value.
+
+    >>> padded([7, 9, 4], 4)
+    {'i0': 7, 'i1': 9, 'i2': 4, 'i3': 4}
+    """
+    last = len(values) - 1
+    return {f"{prefix}{k}": values[min(k, last)] for k in range(size)}
 
 
 class StatementCache:
