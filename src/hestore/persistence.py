@@ -15,7 +15,6 @@ nothing of transactions.
 from __future__ import annotations
 
 import functools
-
 from datetime import datetime, timezone
 from typing import Any, Callable
 
@@ -370,8 +369,10 @@ class Persistence:
 
         Every row written carries the transaction's revision (``rev``); a row
         version an earlier revision wrote is first copied to its table's
-        history twin (`hestore.journal.to_history`), so history is recorded by the very
-        statements that change the rows. The first flush of a transaction
+        history twin (`hestore.journal.to_history`), so history is recorded
+        where the rows change: on PostgreSQL by the write statement itself
+        (data-modifying CTEs, no extra round trip), on SQLite by one more
+        statement per table. The first flush of a transaction
         (``changes.bump``) also adds the revision's row, with ``message``.
 
         One statement per table and kind of change: an ``executemany`` on

@@ -80,7 +80,7 @@ from hestore.errors import (
     WrongThreadError,
 )
 from hestore.persistence import Persistence
-from hestore.statements import StatementCache
+from hestore.statements import Prepared, StatementCache
 from hestore.unitofwork import UnitOfWork
 
 __all__ = ["Session", "MeshRef", "Snapshot"]
@@ -658,12 +658,12 @@ class Session:
                 stmt = self.statements.get(key, build)
             else:
                 stmt = self.statements.get(
-                    ("as_of", key), lambda: as_of(build(), sa.bindparam("asof"), sa.bindparam("m"))
+                    ("as_of", key), lambda: as_of(build(), sa.bindparam("asof"), sa.bindparam("m")), prepare=False
                 )
                 values["asof"] = ref.revision
             values["m"] = ref.id
             cur = self._cur
-            cur.execute(stmt.sql, stmt.bind(values))
+            stmt.execute(cur, stmt.bind(values))
             return cur.fetchall()
         except HestoreError:
             raise
@@ -826,7 +826,7 @@ class Session:
                 for table in schema.VERSIONED:
                     whole = table is schema.properties or lo == 0
                     stmt = self.statements.get(
-                        ("versions", table.name, whole), lambda t=table, w=whole: changed_rows(t, w)
+                        ("versions", table.name, whole), lambda t=table, w=whole: changed_rows(t, w), prepare=False
                     )
                     rows = [stmt.rows(self._cur, {**values, "r": r}) if r else [] for r in (a, b)]
                     out[table.name] = (rows[0], rows[1])
@@ -907,11 +907,11 @@ class Session:
             since = self._counters_after(ref, target)
             for table in schema.VERSIONED:
                 statements = restore_statements(table, target, revision, since)
-                for stmt in statements:
-                    conn.execute(stmt, {"m": ref.id})
                 if len(statements) > 2:  # rows came back: those that did not exist before get their record
-                    conn.execute(to_history(table, "new", dialect, restored(table, target, revision)),
-                                 {"m": ref.id, "r": revision})
+                    statements.append(to_history(table, "new", dialect, restored(table, target, revision)))
+                for stmt in statements:
+                    # Planned for these revisions each time (see `Prepared`): the best plan depends on them.
+                    Prepared(stmt, self.dialect, prepare=False).run(self._cur, {"m": ref.id, "r": revision})
             m = schema.meshes
             conn.execute(m.update().where(m.c.id == ref.id).values(revision=revision))
             # Its id counters are the mesh's (a restore hands out no id): what later revisions create starts there.

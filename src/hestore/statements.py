@@ -60,13 +60,21 @@ class Prepared:
         The Core statement, with named ``bindparam`` placeholders.
     dialect : sqlalchemy.engine.Dialect
         The dialect to compile for.
+    prepare : bool
+        Whether PostgreSQL may keep one plan for every call (a server-side
+        prepared statement, psycopg's choice); False plans each call for its values.
     """
 
-    __slots__ = ("sql", "bind", "order", "_pick", "_fixed")
+    __slots__ = ("sql", "bind", "order", "_pick", "_fixed", "_options")
 
-    def __init__(self, stmt: Any, dialect: sa.engine.Dialect) -> None:
+    def __init__(self, stmt: Any, dialect: sa.engine.Dialect, *, prepare: bool = True) -> None:
         compiled = _compiler_for(dialect)(dialect, stmt)
         self.sql: str = compiled.string
+        # psycopg prepares a statement run five times, and PostgreSQL may then
+        # plan it once for any values: right for a point read, ruinous for a
+        # read whose best plan depends on its values (a view of the past, the
+        # rows between two revisions). Those are planned for every call.
+        self._options = {"prepare": False} if not prepare and dialect.name == "postgresql" else {}
         # Positional drivers (sqlite3's qmark) need the parameters in the
         # order they appear; named ones (psycopg's pyformat) take the dict.
         order = tuple(compiled.positiontup) if dialect.positional else None
@@ -93,14 +101,18 @@ class Prepared:
             return values
         return self._pick(values)
 
+    def execute(self, cursor: Any, params: Any) -> None:
+        """Execute with the driver's parameters (`bind`'s or `params`')."""
+        cursor.execute(self.sql, params, **self._options)
+
     def rows(self, cursor: Any, values: dict[str, Any]) -> list[tuple]:
         """Execute with ``values`` and return all rows."""
-        cursor.execute(self.sql, self.params(values))
+        cursor.execute(self.sql, self.params(values), **self._options)
         return cursor.fetchall()
 
     def run(self, cursor: Any, values: dict[str, Any]) -> None:
         """Execute with ``values``, discarding any result."""
-        cursor.execute(self.sql, self.params(values))
+        cursor.execute(self.sql, self.params(values), **self._options)
 
     def run_columns(self, cursor: Any, fixed: dict[str, Any], columns: dict[str, Sequence]) -> None:
         """Execute once per row of equal-length ``columns``, in one driver call; ``fixed`` values repeat.
@@ -152,9 +164,9 @@ class StatementCache:
         self.dialect = dialect
         self._cache: dict[Any, Prepared] = {}
 
-    def get(self, key: Any, build: Callable[[], Any]) -> Prepared:
-        """The statement stored under ``key``, compiled from ``build()`` once."""
+    def get(self, key: Any, build: Callable[[], Any], *, prepare: bool = True) -> Prepared:
+        """The statement stored under ``key``, compiled from ``build()`` once (``prepare``: see `Prepared`)."""
         prepared = self._cache.get(key)
         if prepared is None:
-            prepared = self._cache[key] = Prepared(build(), self.dialect)
+            prepared = self._cache[key] = Prepared(build(), self.dialect, prepare=prepare)
         return prepared
