@@ -186,11 +186,13 @@ def as_of(statement, revision: Any, mesh: Any = None):
         own[id(select)] = {id(part) for f in select.get_final_froms() for part in parts(f)}
         for i in own[id(select)]:
             reads[i] = reads.get(i, 0) + 1
+    where_of: dict[int, Any] = {}  # a WHERE term taken into a union -> its select
     for select in selects:
         for term in _conjuncts(select.whereclause):
             source = _single_source(term)
             if source is not None and id(source) in own[id(select)] and id(source) not in nullable:
                 pushed[id(source)].append(term)
+                where_of[id(term)] = select
     merged: dict[int, tuple] = {}  # an outer join on the key of its right side -> (current, history)
     columns: dict = {}  # a source -> the subquery replacing it, or a mapping of its columns
     for join in joins:
@@ -207,12 +209,26 @@ def as_of(statement, revision: Any, mesh: Any = None):
                 c.name: sa.case((current.c.id.is_not(None), current.c[c.name]), else_=history.c[c.name])
                 for c in right.c
             }
+    # A WHERE term taken into a union leaves its place outside to TRUE: kept, it would be a second
+    # join with the same keys, and a planner misjudging one of them loops over the other. Its select
+    # names its tables itself then, so that none goes missing with its terms.
+    moved: set[int] = set()
+    explicit: dict[int, sa.Select] = {}
     for source in sources:
         if source not in columns:
             terms = pushed[id(source)] if reads.get(id(source)) == 1 else []
             columns[source] = _versions_at(source, revision, mesh, sa.and_(*terms) if terms else None)
+            for term in terms:
+                select = where_of.get(id(term))
+                if select is not None:
+                    moved.add(id(term))
+                    explicit.setdefault(id(select), select.select_from(*select.get_final_froms()))
 
     def replace(element, keep=None):
+        if id(element) in moved:
+            return sa.true()
+        if id(element) in explicit:
+            return replacement_traverse(explicit.pop(id(element)), {}, replace)
         if isinstance(element, sa.Join):
             return rebuilt(element)
         if isinstance(element, sa.FromClause):
@@ -230,7 +246,15 @@ def as_of(statement, revision: Any, mesh: Any = None):
         to = replace(f)
         return f if to is None else to
 
+    done: dict[int, sa.Join] = {}
+
     def rebuilt(join: sa.Join) -> sa.Join:
+        # The same join object, wherever it appears (an explicit FROM names it again), gives one new join.
+        if id(join) not in done:
+            done[id(join)] = rejoined(join)
+        return done[id(join)]
+
+    def rejoined(join: sa.Join) -> sa.Join:
         left, right = side(join.left), join.right
         plan = merged.get(id(join))
         if plan is None:
