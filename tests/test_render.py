@@ -18,6 +18,7 @@ from hestore.cli import main
 matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")
 
+from matplotlib.collections import LineCollection, PathCollection  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.image import imread  # noqa: E402
@@ -104,7 +105,7 @@ def test_svg_of_a_small_mesh(store, out):
     rendering.render(mesh, str(path), size=(400, 300))
     root = ET.parse(path).getroot()
     assert root.tag == f"{SVG}svg"
-    assert root.get("width").startswith("400") or root.get("width").startswith("288")  # pt: 400 px at 100 dpi
+    assert (root.get("width"), root.get("height")) == ("288pt", "216pt")  # 400 x 300 px at 100 dpi, in points
     # The four triangles, their edges and the boundary are vector paths.
     assert len(root.findall(f".//{SVG}path")) >= 4
 
@@ -253,19 +254,27 @@ def test_check_violations_in_red(db_url, out):
         mesh = pyramid(store)
         mesh_id, apex = mesh.id, mesh.vertex(4)
         wrong = [h for h in mesh.vertex(0).outgoing()][0].id  # a half-edge that does not leave the apex
+        edge, other = mesh.edge(0), mesh.edge(1)
+        other_halfedge = other.halfedge.id
     engine = sa.create_engine(db_url)
     with engine.begin() as conn:
-        v = hestore.schema.vertices
+        v, e = hestore.schema.vertices, hestore.schema.edges
         conn.execute(v.update().where((v.c.mesh_id == mesh_id) & (v.c.id == apex.id)).values(halfedge=wrong))
+        # Edge 0 points at a half-edge of edge 1: an H_EDGE violation naming edge 0.
+        conn.execute(e.update().where((e.c.mesh_id == mesh_id) & (e.c.id == edge.id)).values(halfedge=other_halfedge))
     engine.dispose()
     with hestore.open(db_url) as store:
         mesh = store.mesh("pyramid")
         violations = mesh.check()
         assert any(x.kind == "vertex" and x.id == apex.id for x in violations)
         ax = mesh.plot(axes())
-        [marks] = [a for a in layers(ax)["violations"] if hasattr(a, "get_offsets")]
-        np.testing.assert_allclose(np.sort(marks.get_facecolors()[:, :3], axis=0)[0], [1.0, 0.0, 0.0])
+        [marks] = [a for a in layers(ax)["violations"] if isinstance(a, PathCollection)]
+        np.testing.assert_array_equal(marks.get_facecolors()[:, :3], [[1.0, 0.0, 0.0]])
         assert len(marks.get_offsets()) >= 1
+        assert any(x.kind == "edge" and x.id == edge.id for x in violations)
+        [lines] = [a for a in layers(ax)["violations"] if isinstance(a, LineCollection)]
+        assert len(lines.get_segments()) >= 1
+        np.testing.assert_array_equal(lines.get_colors()[:, :3], [[1.0, 0.0, 0.0]])
         texts = legend_texts(ax)
         assert any(t.startswith(f"check(): {len(violations)} violation") and "V_HALFEDGE" in t for t in texts)
         # check=False draws no violations even on a broken mesh.

@@ -57,7 +57,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import schema, summary, validation
 from hestore.arrays import Index, cycles, dense, polygon_halfedges, positions as position_array
@@ -151,29 +150,24 @@ class _Scene:
     free: np.ndarray
     next: np.ndarray  # half-edge row
     twin: np.ndarray  # half-edge row
-    e_id: np.ndarray
-    e_halfedge: np.ndarray  # half-edge row
     p_id: np.ndarray
     corners: np.ndarray  # vertex rows of each polygon's corners, polygon after polygon
     offsets: np.ndarray  # polygon i's corners are corners[offsets[i]:offsets[i + 1]]
 
 
 def _rows(index: Index, refs: np.ndarray) -> np.ndarray:
-    rows, ok = index.find(refs.copy())
+    rows, ok = index.find(refs)
     return np.where(ok, rows, -1)
 
 
 def _read(mesh: "Mesh") -> _Scene:
-    h, e, p = schema.halfedges, schema.edges, schema.polygons
-    polygon = sa.cast(sa.func.coalesce(h.c.polygon, -1), sa.BigInteger)
+    h, p = schema.halfedges, schema.polygons
+    # The half-edges' polygon column is not read: the polygon loops walked from the polygons' half-edges
+    # are exactly the half-edges that have one (on a valid mesh; `check` reports any other), and reading a
+    # column of a few million rows costs more than the walk. The edges table is read only for violations.
     with mesh.session.snapshot(mesh.ref) as snap:
-        (v_id, x, y, z, missing), (he_id, origin, nxt, twin, he_polygon), (e_id, e_he), (p_id, p_he) = snap.columns(
-            [
-                position_request(),
-                (h, [h.c.id, h.c.origin, h.c.next, h.c.twin, polygon]),
-                (e, [e.c.id, e.c.halfedge]),
-                (p, [p.c.id, p.c.halfedge]),
-            ]
+        (v_id, x, y, z, missing), (he_id, origin, nxt, twin), (p_id, p_he) = snap.columns(
+            [position_request(), (h, [h.c.id, h.c.origin, h.c.next, h.c.twin]), (p, [p.c.id, p.c.halfedge])]
         )
     vertices, halfedges = Index(v_id), Index(he_id)
     origin_row = _rows(vertices, origin)
@@ -184,9 +178,12 @@ def _read(mesh: "Mesh") -> _Scene:
     loops = polygon_halfedges(he_id, nxt, p_he) if len(p_id) else None
     corners = origin_row[loops.indices] if loops is not None else np.zeros(0, dtype=np.int64)
     offsets = loops.offsets if loops is not None else np.zeros(1, dtype=np.int64)
+    free = np.ones(len(he_id), dtype=bool)
+    if loops is not None:
+        free[loops.indices] = False
     return _Scene(
-        v_id, position_array(x, y, z, missing), he_id, origin_row, target_row, he_polygon < 0,
-        next_row, twin_row, e_id, _rows(halfedges, e_he), p_id, corners, offsets,
+        v_id, position_array(x, y, z, missing), he_id, origin_row, target_row, free, next_row, twin_row,
+        p_id, corners, offsets,
     )
 
 
@@ -358,17 +355,21 @@ def plot(
     screen = scene.xyz @ camera.T  # x, y on screen, depth (larger is nearer)
     light = _unit(camera[2] + 0.6 * camera[1] - 0.4 * camera[0])
 
-    _polygons(mpl, ax, scene, screen, placed, light, planar is not None, max_polygons, notes, report)
-    handles = _highlights(mpl, ax, scene, screen, placed, violations)
-    if labels:
-        _labels(ax, scene, screen, placed, notes)
+    pixels_per_unit = 1.0
     if placed.any():
         lo, hi = screen[placed, :2].min(axis=0), screen[placed, :2].max(axis=0)
         pad = 0.04 * max(float((hi - lo).max()), 1e-9)
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        # What one unit of the mesh spans on the Axes once its aspect is equal: the raster's resolution.
+        box = ax.get_window_extent()
+        pixels_per_unit = min(box.width / (hi[0] - lo[0] + 2 * pad), box.height / (hi[1] - lo[1] + 2 * pad))
     elif not len(scene.v_id):
         notes.append("the mesh is empty")
+    _polygons(mpl, ax, scene, screen, placed, light, planar is not None, max_polygons, pixels_per_unit, notes, report)
+    handles = _highlights(mpl, ax, mesh, scene, screen, placed, violations)
+    if labels:
+        _labels(ax, scene, screen, placed, notes)
     ax.set_aspect("equal")
     ax.set_axis_off()
     if handles:
@@ -379,7 +380,10 @@ def plot(
     return ax
 
 
-def _polygons(mpl, ax, scene: _Scene, screen, placed, light, planar: bool, max_polygons: int, notes, report) -> None:
+def _polygons(
+    mpl, ax, scene: _Scene, screen, placed, light, planar: bool, max_polygons: int, pixels_per_unit: float, notes,
+    report,
+) -> None:
     """The polygons, shaded, as one PolyCollection (their edges its edges) or one raster image."""
     degree = np.diff(scene.offsets)
     if not len(degree):
@@ -399,7 +403,7 @@ def _polygons(mpl, ax, scene: _Scene, screen, placed, light, planar: bool, max_p
         shade = np.where(length > 0, 0.3 + 0.7 * cosine, 0.6)
     colours = np.column_stack([np.clip(shade[:, None] * _FACE, 0, 1), np.ones(len(degree))])
     if len(shown) > max_polygons:
-        _raster(ax, scene, screen, shown, colours, report)
+        _raster(ax, scene, screen, shown, colours, pixels_per_unit, report)
         notes.append(f"{len(shown):,} polygons drawn as a raster (more than max_polygons={max_polygons:,}); "
                      "edges not drawn")
         return
@@ -422,7 +426,7 @@ def _polygons(mpl, ax, scene: _Scene, screen, placed, light, planar: bool, max_p
     report("draw", 1, 1)
 
 
-def _raster(ax, scene: _Scene, screen, shown, colours, report) -> None:
+def _raster(ax, scene: _Scene, screen, shown, colours, pixels_per_unit: float, report) -> None:
     """Rasterise the polygons (fans of triangles) with a z-buffer at the Axes' pixel size; show the image."""
     degree = np.diff(scene.offsets)[shown]
     first = scene.offsets[shown]
@@ -436,12 +440,9 @@ def _raster(ax, scene: _Scene, screen, shown, colours, report) -> None:
     if not len(tri):  # only 1-gons and 2-gons: nothing has an area
         return
     xy = screen[:, :2]
-    used = np.unique(tri)
-    lo, hi = xy[used].min(axis=0), xy[used].max(axis=0)
+    lo, hi = xy[tri].min(axis=(0, 1)), xy[tri].max(axis=(0, 1))
     span = np.maximum(hi - lo, 1e-12)
-    box = ax.get_window_extent()
-    scale = min(box.width / span[0], box.height / span[1])
-    scale = min(scale, _RASTER_SIDE / span.max())
+    scale = min(pixels_per_unit, _RASTER_SIDE / span.max())
     width, height = (max(int(math.ceil(s * scale)), 1) for s in span)
     px = (xy - lo) * scale  # pixel (i, j) covers [i, i + 1) x [j, j + 1)
     depth_buffer = np.full(width * height, -np.inf)
@@ -493,7 +494,7 @@ def _segments(screen, start: np.ndarray, end: np.ndarray) -> np.ndarray:
     return np.stack([screen[start, :2], screen[end, :2]], axis=1)
 
 
-def _highlights(mpl, ax, scene: _Scene, screen, placed, violations: list[Violation]) -> list:
+def _highlights(mpl, ax, mesh: "Mesh", scene: _Scene, screen, placed, violations: list[Violation]) -> list:
     """Boundary loops, wire edges, isolated and pinched vertices, violations: one artist each; legend handles."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -545,7 +546,7 @@ def _highlights(mpl, ax, scene: _Scene, screen, placed, violations: list[Violati
                                   label=f"pinched vertices ({len(pinched):,})"))
 
     if violations:
-        _violations(mpl, ax, scene, screen, placed, ends_placed, violations)
+        _violations(mpl, ax, mesh, scene, screen, placed, ends_placed, violations)
         codes = sorted({v.code for v in violations})
         handles.append(Patch(color=_VIOLATION, label=f"check(): {len(violations):,} violation(s): {', '.join(codes)}"))
     return handles
@@ -564,7 +565,9 @@ def _loop_labels(free: np.ndarray, nxt: np.ndarray) -> np.ndarray:
     return label
 
 
-def _violations(mpl, ax, scene: _Scene, screen, placed, ends_placed, violations: list[Violation]) -> None:
+def _violations(
+    mpl, ax, mesh: "Mesh", scene: _Scene, screen, placed, ends_placed, violations: list[Violation]
+) -> None:
     """The elements the violations name, in red, as one collection (polygons, lines and points in one path set)."""
     ids: dict[str, list[int]] = {"vertex": [], "halfedge": [], "edge": [], "polygon": []}
     for v in violations:
@@ -576,8 +579,12 @@ def _violations(mpl, ax, scene: _Scene, screen, placed, ends_placed, violations:
         return np.unique(rows[rows >= 0])
 
     halfedges = found(scene.he_id, ids["halfedge"])
-    edge_rows = found(scene.e_id, ids["edge"])
-    edge_halfedges = scene.e_halfedge[edge_rows]
+    edge_halfedges = np.zeros(0, dtype=np.int64)
+    if ids["edge"]:
+        e = schema.edges
+        with mesh.session.snapshot(mesh.ref) as snap:
+            [(e_id, e_halfedge)] = snap.columns([(e, [e.c.id, e.c.halfedge])])
+        edge_halfedges = _rows(Index(scene.he_id), e_halfedge[found(e_id, ids["edge"])])
     lines = np.unique(np.r_[halfedges, edge_halfedges[edge_halfedges >= 0]]).astype(np.int64)
     lines = lines[ends_placed[lines]]
     paths = list(_segments(screen, scene.origin[lines], scene.target[lines]))
