@@ -7,7 +7,9 @@ dispatches, and turns every error a user can cause (hestore's own, an
 unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
-Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE [--revision R]``, ``list``,
+Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE [--revision R]``,
+``render NAME FILE.png|.svg [--revision R] [--view V] [--labels] [--check|--no-check] [--size WxH]``
+(`hestore.Mesh.render`), ``list``,
 ``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``, ``log NAME [--limit N]``,
 ``diff NAME A B``, ``undo NAME``, ``redo NAME``, ``revert NAME R``,
 ``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
@@ -17,7 +19,7 @@ components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, throu
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
 found no path, 2 error, 130 interrupted.
 
-``import`` and ``export`` report progress through `ProgressBar`, on stderr:
+``import``, ``export`` and ``render`` report progress through `ProgressBar`, on stderr:
 a redrawn bar on a terminal, and only a plain final line elsewhere, so that
 logs carry no control characters. Results go to stdout.
 
@@ -46,6 +48,7 @@ from hestore import migrate, urls
 from hestore.errors import HestoreError, InvalidInputError, MeshExistsError, PolicyError
 from hestore.history import KINDS as ELEMENT_KINDS
 from hestore.progress import ProgressBar
+from hestore.render import CHECK_POLYGONS, LABEL_VERTICES, MAX_POLYGONS, VIEWS
 from hestore.values import KINDS as PROPERTY_KINDS
 
 __all__ = ["DEFAULT_URL", "main", "build_parser"]
@@ -172,6 +175,43 @@ def _cmd_export(args: argparse.Namespace) -> int:
         f"{counts.polygons} polygons, {size} bytes"
     )
     return 0
+
+
+def _view(text: str | None) -> object:
+    """``--view``: a named view, or ``AZIMUTH,ELEVATION`` in degrees (anything else: the library refuses it)."""
+    if text is None or text in VIEWS:
+        return text
+    parts = text.split(",")
+    try:
+        return tuple(float(p) for p in parts) if len(parts) == 2 else text
+    except ValueError:
+        return text
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    view = _view(args.view)
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        if args.revision is not None:
+            mesh = mesh.at(args.revision)
+        with ProgressBar() as bar:
+            mesh.render(args.file, view=view, labels=args.labels, check=args.check, size=args.size, progress=bar)
+        counts = mesh.counts()
+    size = os.path.getsize(args.file)
+    at = "" if args.revision is None else f" at revision {args.revision}"
+    print(f"drew {args.name!r}{at} ({counts.polygons} polygons) to {args.file}: {size} bytes")
+    return 0
+
+
+def _pixels(text: str) -> tuple[int, int]:
+    """``--size WIDTHxHEIGHT``."""
+    try:
+        width, height = (int(p) for p in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, such as 1200x900, not {text!r}") from None
+    if width < 1 or height < 1:
+        raise argparse.ArgumentTypeError(f"width and height must be at least 1, not {text!r}")
+    return width, height
 
 
 def _changes(changes: dict) -> str:
@@ -658,6 +698,40 @@ def build_parser() -> argparse.ArgumentParser:
         "--revision", metavar="R", type=int, default=None, help="write the mesh as it was at revision R"
     )
     exp.set_defaults(func=_cmd_export)
+
+    rnd = commands.add_parser(
+        "render",
+        help="draw a mesh to a PNG or SVG picture: shaded polygons, boundary loops, problems highlighted",
+        description="Draw a mesh to FILE, a PNG or SVG picture by its extension, replacing the file if it "
+        "exists (written whole or not at all): polygons flat-shaded, edges thin, boundary loops as coloured "
+        "lines, wire edges, isolated and pinched vertices marked, and what 'check' finds in red, with a "
+        f"legend. Above {MAX_POLYGONS:,} polygons they are drawn as a raster image (without edges). "
+        "Progress goes to stderr.",
+    )
+    rnd.add_argument("name", metavar="NAME", help="the mesh to draw")
+    rnd.add_argument("file", metavar="FILE", help="the picture to write (.png or .svg)")
+    rnd.add_argument(
+        "--revision", metavar="R", type=int, default=None, help="draw the mesh as it was at revision R"
+    )
+    rnd.add_argument(
+        "--view",
+        metavar="V",
+        default=None,
+        help=f"where to look from: {', '.join(VIEWS)}, or AZIMUTH,ELEVATION in degrees (default: straight "
+        "on for a planar mesh, else iso)",
+    )
+    rnd.add_argument("--labels", action="store_true", help=f"write vertex ids (up to {LABEL_VERTICES:,} vertices)")
+    rnd.add_argument(
+        "--check",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"run the invariant check and draw what it finds in red (default: for meshes of up to "
+        f"{CHECK_POLYGONS:,} polygons)",
+    )
+    rnd.add_argument(
+        "--size", metavar="WxH", type=_pixels, default=(1200, 900), help="picture size in pixels (default 1200x900)"
+    )
+    rnd.set_defaults(func=_cmd_render)
 
     log = commands.add_parser(
         "log", help="the mesh's revisions, newest first: when, what changed (+created −removed ~changed), message"

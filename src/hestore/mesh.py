@@ -5,7 +5,7 @@ This module owns `Mesh`, the object users hold: it checks its arguments
 `hestore.kernel` inside the session's atomic edit scope, reads to
 `hestore.navigation`, summaries to `hestore.summary`, checks to
 `hestore.validation`, bulk export to `hestore.bulk`, graph views to
-`hestore.graphs` — and turns the ``(kind, id)`` pairs of a refused
+`hestore.graphs`, pictures to `hestore.render` — and turns the ``(kind, id)`` pairs of a refused
 operation's `TopologyError` into handles. It holds no state beyond its
 identity (`hestore.session.MeshRef`) and policy.
 """
@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, euler, history, interop, kernel, navigation, properties, schema, summary, validation
+from hestore import bulk, euler, history, interop, kernel, navigation, properties, render, schema, summary, validation
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -1056,6 +1056,27 @@ class Mesh:
     def to_meshio(self):
         """The mesh as a ``meshio.Mesh`` (needs meshio); see `hestore.interop.to_meshio`."""
         return interop.to_meshio(self)
+
+    # -- pictures -----------------------------------------------------------
+
+    def plot(self, ax=None, **options):
+        """Draw the mesh on a matplotlib Axes (needs matplotlib) and return it; see `hestore.render.plot`.
+
+        Examples
+        --------
+        >>> import matplotlib
+        >>> matplotlib.use("Agg")
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        >>> ax = mesh.plot(view="top")
+        >>> [c.get_gid() for c in ax.collections]
+        ['polygons', 'boundary_loops']
+        """
+        return render.plot(self, ax, **options)
+
+    def render(self, path, **options) -> None:
+        """Write a picture of the mesh to a PNG or SVG file (needs matplotlib); see `hestore.render.render`."""
+        render.render(self, path, **options)
 
     # -- validation ---------------------------------------------------------
 

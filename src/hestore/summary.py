@@ -54,7 +54,7 @@ from hestore.handles import HalfEdge, Vertex
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["Stats", "stats", "boundary_loops", "components", "pinched_vertices"]
+__all__ = ["Stats", "stats", "boundary_loops", "components", "pinched_vertices", "fan_counts"]
 
 _I64 = np.int64
 
@@ -255,19 +255,44 @@ def _free_cycles(free: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _fans(t: _Tables, free: np.ndarray, out_degree: np.ndarray) -> np.ndarray:
-    """The number of polygon fans at each vertex (by row).
+    """The number of polygon fans at each vertex (by row): `fan_counts` on the tables read."""
+    return fan_counts(t.origin, t.twin, free, out_degree)
+
+
+def fan_counts(origin: np.ndarray, twin: np.ndarray, free: np.ndarray, out_degree: np.ndarray) -> np.ndarray:
+    """The number of polygon fans at each vertex, from half-edge columns (a vertex with more than one is pinched).
 
     By V_ROTATION, rotating h -> next(twin(h)) is one cycle through every
     outgoing half-edge of the vertex, and the corner at h is linked to the
     next one exactly when edge(h) has polygons on both sides. The links cut
     the cycle into runs, so a vertex has (corners - links) fans, or one
     closed fan when every outgoing half-edge is linked. No walk is needed.
+
+    Parameters
+    ----------
+    origin : ndarray
+        Each half-edge's origin, as a vertex row.
+    twin : ndarray
+        Each half-edge's twin, as a half-edge row.
+    free : ndarray of bool
+        Whether each half-edge is free (has no polygon).
+    out_degree : ndarray
+        Outgoing half-edges per vertex row (``np.bincount(origin)``, as long as there are vertices).
+
+    Examples
+    --------
+    One triangle (half-edges 0, 2, 4 inside, 1, 3, 5 free): one fan at each corner.
+
+    >>> origin, twin = np.array([0, 1, 1, 2, 2, 0]), np.array([1, 0, 3, 2, 5, 4])
+    >>> free = np.array([False, True, False, True, False, True])
+    >>> fan_counts(origin, twin, free, np.bincount(origin)).tolist()
+    [1, 1, 1]
     """
     n_v = len(out_degree)
     corner = ~free
-    linked = corner & ~free[t.twin]
-    corners = np.bincount(t.origin[corner], minlength=n_v)
-    links = np.bincount(t.origin[linked], minlength=n_v)
+    linked = corner & ~free[twin]
+    corners = np.bincount(origin[corner], minlength=n_v)
+    links = np.bincount(origin[linked], minlength=n_v)
     return np.where((links == out_degree) & (out_degree > 0), 1, corners - links)
 
 
