@@ -997,6 +997,40 @@ def test_progress_bar_elsewhere_writes_one_plain_line():
     assert out.getvalue() == "read 20 B in 0.2 s, write 3 rows in 0.0 s\n"
 
 
+@pytest.mark.parametrize("terminal", [False, True])
+def test_progress_bar_with_min_seconds_shows_only_long_operations(terminal):
+    for seconds, shown in ((0.4, False), (1.5, True)):
+        out, clock = (FakeTerminal() if terminal else io.StringIO()), FakeClock()
+        with progress.ProgressBar(out, clock=clock, min_seconds=1.0) as bar:
+            bar("read", 0, 1)
+            clock.now += seconds
+            bar("read", 1, 1)
+            bar("check", 3, 3)
+        assert bool(out.getvalue()) == shown, (seconds, out.getvalue())
+        if shown:  # the final line (on a terminal over the bar, padded to its width)
+            assert out.getvalue().rstrip(" \n").endswith(f"read in {seconds:.1f} s, check in 0.0 s")
+
+
+def test_check_and_stats_report_their_stages(store):
+    mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+    calls = []
+    assert mesh.check(lambda *a: calls.append(a)) == []
+    assert calls == [("read", 0, 1), ("read", 1, 1), ("check", 0, 3), ("check", 1, 3), ("check", 2, 3),
+                     ("check", 3, 3)]
+    calls.clear()
+    assert mesh.stats(lambda *a: calls.append(a)).polygons == 1
+    assert calls == [("read", 0, 1), ("read", 1, 1), ("stats", 0, 1), ("stats", 1, 1)]
+
+
+def test_check_and_info_show_progress_when_slow(db_url, capsys, monkeypatch):
+    assert run(capsys, "--db", db_url, "demo")[0] == 0
+    monkeypatch.setattr(cli, "_QUIET_SECONDS", 0.0)  # as if the mesh were large
+    code, out, err = run(capsys, "--db", db_url, "check", "demo")
+    assert (code, out) == (0, "demo: valid\n") and err.startswith("read in ") and ", check in " in err
+    code, out, err = run(capsys, "--db", db_url, "info", "demo")
+    assert code == 0 and "vertices" in out and err.startswith("read in ") and ", stats in " in err
+
+
 def test_progress_bar_after_a_failure():
     out = FakeTerminal()
     with pytest.raises(RuntimeError):

@@ -19,7 +19,8 @@ components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, throu
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
 found no path, 2 error, 130 interrupted.
 
-``import``, ``export`` and ``render`` report progress through `ProgressBar`, on stderr:
+``import``, ``export``, ``render``, and ``check`` and ``info`` when they take over a second (large
+meshes), report progress through `ProgressBar`, on stderr:
 a redrawn bar on a terminal, and only a plain final line elsewhere, so that
 logs carry no control characters. Results go to stdout.
 
@@ -274,7 +275,7 @@ def _went_back(args: argparse.Namespace, step) -> int:
     return 0
 
 
-def _info(mesh: hestore.Mesh) -> dict:
+def _info(mesh: hestore.Mesh, progress=None) -> dict:
     """What ``info`` shows, as JSON-ready values; the text form is rendered from it.
 
     The mesh's name, revision and policy, then every field of `Mesh.stats`
@@ -288,7 +289,7 @@ def _info(mesh: hestore.Mesh) -> dict:
         "allow_loops": mesh.allow_loops,
         "allow_multi_edges": mesh.allow_multi_edges,
     }
-    for key, value in mesh.stats().as_dict().items():
+    for key, value in mesh.stats(progress).as_dict().items():
         info.setdefault(key, value)
     # The labelled keys in their order, then any the labels do not know yet.
     order = {key: i for i, key in enumerate(_INFO_LABELS)}
@@ -369,7 +370,8 @@ def _property_lines(properties: list[dict]) -> list[str]:
 def _cmd_info(args: argparse.Namespace) -> int:
     with _open(args) as store:
         mesh = store.mesh(args.name)
-        info = _info(mesh)
+        with ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+            info = _info(mesh, bar)
         properties = _properties(mesh)
     if args.json:
         # Only a mesh with properties has the key, so the figures of one without stay as they were.
@@ -397,9 +399,15 @@ def _json_default(value: object) -> object:
     return value
 
 
+#: ``check`` and ``info`` show progress only when they take longer than this (on large meshes), in seconds.
+_QUIET_SECONDS = 1.0
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     with _open(args) as store:
-        violations = store.mesh(args.name).check()
+        mesh = store.mesh(args.name)
+        with ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+            violations = mesh.check(bar)
     if not violations:
         print(f"{args.name}: valid")
         return 0

@@ -275,9 +275,9 @@ class Mesh:
             raise self.session.missing(self.ref)
         return Counts(*counts)
 
-    def stats(self) -> summary.Stats:
-        """Counts and topological invariants of the mesh; see `hestore.summary.stats`."""
-        return summary.stats(self)
+    def stats(self, progress=None) -> summary.Stats:
+        """Counts and topological invariants of the mesh; see `hestore.summary.stats` (and its ``progress``)."""
+        return summary.stats(self, progress)
 
     def boundary_loops(self) -> list[list[HalfEdge]]:
         """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
@@ -1080,8 +1080,10 @@ class Mesh:
 
     # -- validation ---------------------------------------------------------
 
-    def check(self) -> list[Violation]:
+    def check(self, progress=None) -> list[Violation]:
         """Every invariant violation in the stored mesh (empty when valid); never repairs.
+
+        ``progress(stage, done, total)`` is told of each stage (see `hestore.validation.check`).
 
         Raises
         ------
@@ -1096,7 +1098,7 @@ class Mesh:
         >>> mesh.check()
         []
         """
-        return validation.check(self)
+        return validation.check(self, progress)
 
     def validate(self) -> None:
         """Raise `InvariantViolationError` (carrying `check`'s list) unless the mesh is valid.

@@ -79,6 +79,9 @@ class ProgressBar:
         Characters in the bar itself.
     clock : callable
         Returns the time in seconds (`time.monotonic`; tests pass a fake).
+    min_seconds : float
+        Show nothing, bar or final line, for an operation that ends sooner
+        (for commands that are long only on large meshes: ``check``, ``info``).
 
     Examples
     --------
@@ -100,6 +103,7 @@ class ProgressBar:
         interval: float = 0.1,
         width: int = 24,
         clock: Callable[[], float] = time.monotonic,
+        min_seconds: float = 0.0,
     ) -> None:
         self.stream = sys.stderr if stream is None else stream
         self.tty = _isatty(self.stream)
@@ -108,6 +112,7 @@ class ProgressBar:
         self.interval = interval
         self.width = width
         self.clock = clock
+        self.min_seconds = min_seconds
         self._started = clock()
         # stage -> [done, total, time of its last call], in the order the stages began
         self._stages: dict[str, list] = {}
@@ -124,6 +129,8 @@ class ProgressBar:
             self._stages.pop(stage, None)  # a stage that comes back starts over, at the end
         self._stages[stage] = [int(done), int(total), now]
         # A new stage is always shown (there are a few); within one, at most every `interval`.
+        if now - self._started < self.min_seconds:
+            return
         if self.tty and (new_stage or self._drawn_at is None or now - self._drawn_at >= self.interval):
             # Never wider than the terminal: a wrapped line cannot be redrawn in place.
             self._draw(self.line(stage, int(done), int(total))[: max(self._columns - 1, 1)])
@@ -166,7 +173,7 @@ class ProgressBar:
         if self._closed:
             return
         self._closed = True
-        if ok and self._stages:
+        if ok and self._stages and self.clock() - self._started >= self.min_seconds:
             if self.tty:
                 self._draw(self.summary())
                 self.stream.write("\n")

@@ -42,7 +42,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
@@ -315,7 +315,7 @@ def pinched_vertices(mesh: "Mesh") -> list[int]:
     return t.v_id[_fans(t, t.polygon < 0, out_degree) > 1].tolist()
 
 
-def stats(mesh: "Mesh") -> Stats:
+def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> Stats:
     """Counts and topological invariants of a mesh, set-based: `Mesh.stats`.
 
     Reads the vertex ids and four half-edge columns (id, origin, twin, and
@@ -326,6 +326,9 @@ def stats(mesh: "Mesh") -> Stats:
     Parameters
     ----------
     mesh : hestore.Mesh
+    progress : callable, optional
+        ``progress(stage, done, total)`` at the start and end of each stage,
+        ``"read"`` then ``"stats"`` (a `hestore.progress.ProgressBar`, say).
 
     Returns
     -------
@@ -352,7 +355,11 @@ def stats(mesh: "Mesh") -> Stats:
     ({3: 4}, 0, True)
     >>> store.close()
     """
+    report = progress or (lambda stage, done, total: None)
+    report("read", 0, 1)
     t = _read(mesh, sides=True, links=True)
+    report("read", 1, 1)
+    report("stats", 0, 1)
     n_v, n_h = len(t.v_id), len(t.he_id)
     rows = np.arange(n_h, dtype=_I64)
     free = t.polygon < 0
@@ -389,6 +396,7 @@ def stats(mesh: "Mesh") -> Stats:
     genus = None
     if not wire_edges and not pinched:
         genus = (2 * (n_components - isolated) - (chi - isolated) - n_loops) // 2
+    report("stats", 1, 1)
     return Stats(
         vertices=n_v,
         isolated_vertices=isolated,

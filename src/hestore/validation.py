@@ -841,7 +841,7 @@ def check_arrays(
     return result
 
 
-def check(mesh: "Mesh") -> list[Violation]:
+def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> list[Violation]:
     """Check a stored mesh: what `Mesh.check` returns.
 
     Reads the mesh's tables in one snapshot through its store's session
@@ -852,6 +852,9 @@ def check(mesh: "Mesh") -> list[Violation]:
     ----------
     mesh : hestore.Mesh
         The mesh to check.
+    progress : callable, optional
+        ``progress(stage, done, total)``: ``"read"`` (0 then 1 of 1), then
+        ``"check"`` (topology, properties, history: 0 to 3 of 3).
 
     Returns
     -------
@@ -872,12 +875,19 @@ def check(mesh: "Mesh") -> list[Violation]:
     []
     >>> store.close()
     """
+    report = progress or (lambda stage, done, total: None)
     with mesh.session.snapshot(mesh.ref) as snap:
+        report("read", 0, 1)
         arrays = _arrays(snap.columns(_REQUESTS))
+        report("read", 1, 1)
+        report("check", 0, 3)
         found = check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
+        report("check", 1, 3)
         found += _property_violations(snap, mesh.id, arrays)
+        report("check", 2, 3)
         if not mesh.is_view:  # a view is read from the history this checks
             found += _history_violations(snap, mesh.id)
+        report("check", 3, 3)
         return found
 
 
