@@ -49,7 +49,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import properties as props
-from hestore import schema
+from hestore import schema, traversal
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError
@@ -71,8 +71,10 @@ LENGTH = "length"
 CACHE = "graphs"
 
 
-def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None) -> nx.Graph:
-    """A frozen networkx graph of the mesh's committed state.
+def to_networkx(
+    mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None, vertices: Iterable[int] | None = None
+) -> nx.Graph:
+    """A frozen networkx graph of the mesh's committed state, or the view induced by some of its vertices.
 
     Parameters
     ----------
@@ -135,6 +137,15 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
         multigraph use the lightest parallel edge), any other property the
         value of the lowest edge id that has one, and ``"length"`` their
         common length (they join the same two vertices).
+    vertices : iterable of int, optional
+        For the vertex kinds (``"multigraph"``, ``"graph"``, ``"halfedge"``):
+        the view induced by these vertex ids — equal to the whole view's
+        ``G.subgraph(vertices)``, with the same nodes, edges, keys and
+        attributes, but read from the rows of those vertices and the
+        half-edges between them only (`hestore.traversal.halfedges_among`),
+        so it costs with the set, not with the mesh. Like the other local
+        queries (`hestore.traversal`) it reads the mesh as every read does,
+        an open block's own edits included, and is not cached.
 
     Returns
     -------
@@ -149,7 +160,8 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     Raises
     ------
     InvalidInputError
-        ``kind`` is not one of `KINDS`; ``attrs`` is not a list of names;
+        ``kind`` is not one of `KINDS`; ``vertices`` is given for the
+        ``"dual"``; ``attrs`` is not a list of names;
         a name in ``attrs`` is one of the view's own attributes where it
         would go (``pos``, ``halfedges``, ``edges``, …).
     PropertyNotFoundError
@@ -239,10 +251,28 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     ({'pos': (0.0, 0.0, 0.0), 'label': 'start'}, {'pos': (9.0, 0.0, 0.0)})
     >>> G.edges[a.id, b.id, 0]
     {'halfedges': (0, 1), 'polygons': (0, None), 'length': 9.0}
+
+    The view induced by a few vertices, read without the rest of the mesh:
+
+    >>> H = w.to_networkx(vertices=[a, b, p], attrs=["length"])
+    >>> list(H.edges(keys=True, data="length"))
+    [(0, 1, 0, 9.0), (0, 4, 4, 5.0)]
+    >>> S = w.to_networkx(attrs=["length"]).subgraph([a.id, b.id, p.id])  # the same, from the whole view
+    >>> dict(S.nodes(data=True)) == dict(H.nodes(data=True))
+    True
+    >>> list(S.edges(keys=True, data=True)) == list(H.edges(keys=True, data=True))
+    True
     """
     if kind not in KINDS:
         raise InvalidInputError(f"unknown graph kind {kind!r}; the kinds are {', '.join(map(repr, KINDS))}")
     names = _names(attrs)
+    if vertices is not None:
+        if kind == "dual":
+            raise InvalidInputError(
+                "vertices= takes the vertex kinds ('multigraph', 'graph', 'halfedge'); "
+                "the dual's nodes are polygons"
+            )
+        return _induced(mesh, kind, names, vertices)
     key = (mesh.id, kind, names) if names else (mesh.id, kind)
     with mesh.session.snapshot(mesh.ref, committed=True) as snap:
         # Only an in-memory SQLite store inside a block reads its own
@@ -266,6 +296,45 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     nx.freeze(G)
     _remember(cache, key, revision, G)
     return G
+
+
+def _induced(mesh: "Mesh", kind: str, names: tuple[str, ...], vertices: Iterable[int]) -> nx.Graph:
+    """The view of ``kind`` induced by the vertex ids ``vertices``: the builders of the whole view, fed their rows.
+
+    The vertices' rows and the half-edges between them are all the
+    builders need: with them they make the same dicts, in the same order,
+    as the whole view restricted to those nodes.
+    """
+    ids = sorted(set(vertices))
+    with mesh.session.snapshot(mesh.ref) as snap:
+        plan = _plan(mesh, snap, kind, names) if names else None
+        v_rows = traversal.vertex_rows(mesh, ids) if ids else []
+        h_rows = traversal.halfedges_among(mesh, ids) if ids else []
+        columns = _induced_columns(kind, v_rows, h_rows)
+        extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        revision = snap.revision
+    with _gc_paused():
+        G = _BUILDERS[kind](*columns, extra=extra)
+    G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
+    nx.freeze(G)
+    return G
+
+
+def _induced_columns(kind: str, v_rows: list[tuple], h_rows: list[tuple]) -> list:
+    """The columns `_REQUESTS` would read, of the rows `hestore.traversal` read (both ascending by id)."""
+    unplaced = [r[1] is None or r[2] is None or r[3] is None for r in v_rows]
+    coords = [np.array([0.0 if u else r[k] for r, u in zip(v_rows, unplaced)], dtype=np.float64) for k in (1, 2, 3)]
+    vertices = [np.array([r[0] for r in v_rows], dtype=np.int64), *coords, np.array(unplaced, dtype=np.int64)]
+    names = ("id", "origin", "twin", "edge")
+    h = {name: np.array([r[k] for r in h_rows], dtype=np.int64) for k, name in enumerate(names)}
+    h["polygon"] = np.array([-1 if r[4] is None else r[4] for r in h_rows], dtype=np.int64)
+    edge_rows = sorted({(r[3], r[6]) for r in h_rows})
+    edges = [np.array([e for e, _ in edge_rows], dtype=np.int64), np.array([x for _, x in edge_rows], dtype=np.int64)]
+    if kind == "multigraph":
+        return [vertices, [h["id"], h["origin"], h["twin"], h["polygon"]], edges]
+    if kind == "graph":
+        return [vertices, [h["id"], h["origin"], h["twin"]], edges]
+    return [vertices, [h["id"], h["origin"], h["twin"], h["edge"], h["polygon"]]]
 
 
 #: How many graphs with ``attrs`` the cache keeps per mesh and kind (the most recently built).
