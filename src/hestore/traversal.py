@@ -16,8 +16,8 @@ per level, and the reads see an open block's own edits and, on a view of the
 past (`hestore.Mesh.at`), that revision. The twin (and its origin's vertex
 row) is outer-joined on its whole key, as `hestore.navigation` does: a view
 rewrites such a join into two indexed joins (`hestore.journal.as_of`), where
-an inner join would make it read the whole table. Each query runs inside one
-read snapshot, so a search never mixes two committed states.
+an inner join would make it read the whole table. A search's queries run
+inside one read snapshot, so it never mixes two committed states.
 
 The graph they search is the multigraph of `hestore.graphs` (``"multigraph"``):
 one node per vertex, one edge per mesh edge. Self-loops never shorten a path
@@ -31,11 +31,13 @@ from __future__ import annotations
 import heapq
 import math
 import operator
-from typing import TYPE_CHECKING, Callable, Sequence
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import sqlalchemy as sa
 
 from hestore import schema
+from hestore.columns import read_snapshot
 from hestore.errors import (
     InvalidInputError,
     InvariantViolationError,
@@ -70,6 +72,19 @@ _V = schema.vertices
 
 # --------------------------------------------------------------------------
 # Batched reads
+
+
+@contextmanager
+def _consistent(mesh: "Mesh") -> Iterator[None]:
+    """Run the block's reads in one read snapshot of the session's connection (an open block's own state).
+
+    A search's queries then see one committed state even while other
+    processes commit. Cheaper than `hestore.session.Session.snapshot`, which
+    also reads the revision: a cold query on PostgreSQL pays about a
+    millisecond per round trip it makes.
+    """
+    with mesh.session.reading() as connection, read_snapshot(connection):
+        yield
 
 
 def _in_rows(mesh: "Mesh", name: str, build: Callable[[int], object], ids: Sequence[int]) -> list[tuple]:
@@ -252,15 +267,19 @@ def k_ring(mesh: "Mesh", v: int, k: int) -> set[Vertex]:
     {Vertex(5)}
     """
     k = _order(k)
-    with mesh.session.snapshot(mesh.ref):
-        exists(mesh, "vertex", v)
+    with _consistent(mesh):
         seen = {v}
         frontier = [v]
-        for _ in range(k):
+        if k == 0:
+            exists(mesh, "vertex", v)
+        for level in range(k):
             if not frontier:
                 break
+            stars = _stars(mesh, frontier)
+            if level == 0 and not stars:
+                exists(mesh, "vertex", v)  # isolated, or not there at all: only then one query more
             found = []
-            for _origin, target in _stars(mesh, frontier):
+            for _origin, target in stars:
                 if target not in seen:
                     seen.add(target)
                     found.append(target)
@@ -332,10 +351,9 @@ def shortest_path(mesh: "Mesh", a: int, b: int, weight: str | None = None) -> li
     hestore.errors.NoPathError: no path from vertex 0 to vertex 5 in mesh 'm': they are in different components
     """
     weight = _weight(weight)
-    with mesh.session.snapshot(mesh.ref):
+    with _consistent(mesh):
         if weight is None:
-            exists(mesh, "vertex", a)
-            exists(mesh, "vertex", b)
+            vertex_rows(mesh, sorted({a, b}))  # both there, in one query
             path = [a] if a == b else _bfs_path(mesh, a, b)
         else:
             path = _astar_path(mesh, a, b)
