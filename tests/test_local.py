@@ -10,7 +10,9 @@ typed errors, and the ``graph … path`` / ``graph … neighbors`` commands.
 from __future__ import annotations
 
 import math
+import pathlib
 import random
+import re
 
 import networkx as nx
 import pytest
@@ -483,3 +485,17 @@ def test_cli_graph_path_builds_no_graph(capsys, db_url, monkeypatch):
     )  # fmt: skip
     assert run(capsys, *graph, "path", "0", "9", "--weight", "length")[0] == 1
     assert "vertex 42 does not exist" in one_line_error(*run(capsys, *graph, "path", "0", "42"))
+
+
+# -- the documentation's example --------------------------------------------------------------
+
+
+def test_the_local_queries_example_in_the_docs_runs(capsys):
+    page = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "analysis.md").read_text(encoding="utf-8")
+    section = page[page.index("## Local queries") :]
+    blocks = re.findall(r"^```python\n(.*?)^```", section, re.M | re.S)
+    assert blocks
+    for block in blocks:
+        exec(compile(block, "docs/analysis.md, Local queries", "exec"), {})
+    announced = [m.group(1) for b in blocks for m in re.finditer(r"print\(.*\)\s+# (.*)$", b, re.M)]
+    assert capsys.readouterr().out.splitlines() == announced

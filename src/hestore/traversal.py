@@ -104,13 +104,14 @@ def _keys(size: int) -> list:
     return [sa.bindparam(f"i{k}") for k in range(size)]
 
 
-def _twin(h):
+def _twin():
+    """The half-edges outer-joined to their twins ``t``, on the twin's whole key (see the module's docstring)."""
     t = _H.alias("t")
-    return t, h.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
+    return t, _H.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
 
 
 def _build_star(size: int):
-    t, j = _twin(_H)
+    t, j = _twin()
     stmt = (
         sa.select(_H.c.origin, t.c.origin)
         .select_from(j)
@@ -120,7 +121,7 @@ def _build_star(size: int):
 
 
 def _build_placed_star(size: int):
-    t, j = _twin(_H)
+    t, j = _twin()
     w = _V.alias("w")
     j = j.outerjoin(w, sa.and_(w.c.mesh_id == _H.c.mesh_id, w.c.id == t.c.origin))
     stmt = (
@@ -169,7 +170,7 @@ def vertex_rows(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
 
 
 def _build_among(size: int):
-    t, j = _twin(_H)
+    t, j = _twin()
     e = schema.edges
     j = j.outerjoin(e, sa.and_(e.c.mesh_id == _H.c.mesh_id, e.c.id == _H.c.edge))
     stmt = (
