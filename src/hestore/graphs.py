@@ -9,7 +9,9 @@ cached per store, mesh and kind, and rebuilt only when the mesh's committed
 revision has changed. ``attrs`` adds properties (and the derived edge
 ``length``) as node and edge attributes: each property's values are read as
 one column, in the same snapshot as the connectivity, and set on the
-attribute dicts the builders make.
+attribute dicts the builders make. ``vertices`` makes the view induced by
+some vertices with the same builders, fed the rows of those vertices and of
+the half-edges between them (`hestore.traversal`) instead of whole columns.
 
 How a graph is made: the columns it needs are read in bulk, in one snapshot
 together with the revision (`hestore.columns.read_columns`); the grouping of
@@ -179,7 +181,8 @@ def to_networkx(
     block it is read through a second connection and does not show the
     block's edits — except for an in-memory SQLite store, which has only one
     connection; there it shows the block's state, and such a graph is not
-    cached.
+    cached. A view induced by ``vertices`` is a local query instead: it
+    shows what every read shows, the block's own edits included.
 
     While the committed revision is unchanged, the same graph object is
     returned again (one per kind and list of ``attrs``), so do not modify
