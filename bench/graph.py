@@ -48,12 +48,36 @@ stats(), boundary_loops(), components(), check()  no library floor; SPEC's
         ``nx.number_connected_components`` on the floor's "graph" (fetch +
         build + count).
 
+Local queries (``--parts local``; SPEC §9: ``shortest_path`` of ~10 edges
+≤ 50 ms and ``k_ring(v, 3)`` ≤ 5 ms on the stored mesh, cold):
+
+shortest_path, shortest_path "length", k_ring(v, 3)
+        each the first call in a fresh process on a freshly opened store
+        (opening it is not timed), one process per pair; the figure is the
+        median of LOCAL_RUNS pairs (random vertices ``a``, and ``b`` drawn
+        among the vertices exactly PATH_EDGES edges from ``a``), the slowest
+        and the warm median (the same call repeated in that process) in the
+        notes. Floor = networkx on a whole graph built for the purpose:
+        fetch (edge and vertex arrays) + ``nx.MultiGraph`` of the nodes and
+        ``(u, v, key, {"length": …})`` edges + the query on it
+        (``nx.shortest_path``, by the lightest parallel edge's length for
+        "length"; ``single_source_shortest_path_length(G, v, cutoff=3)``);
+        the build's time and peak RSS are printed.
+to_networkx("multigraph") memory
+        what the graph holds (the process's RSS after the call and a
+        collection, less before it), beside the bare networkx floor:
+        ``nx.MultiGraph().add_edges_from`` of the same ``(u, v, key)``
+        triples, measured the same way in its own process. No SPEC target.
+
 Correctness gates (the exit status is non-zero only when one fails or a step
 crashes, never for a slow figure): both backends give the same edge array;
 every graph has exactly the floor's nodes, edges, keys, ``pos`` and
 attributes, and is frozen; the second call returns the same graph; stats()
 agrees with counts(), with len(boundary_loops()) and len(components()), and
-with networkx's component count; check() is empty.
+with networkx's component count; check() is empty; every local answer
+agrees with networkx's on the floor's graph (the path joins ``a`` to ``b``
+along edges of the mesh, with as many edges, or the same total length within
+1e-9 relative; the k-ring is the same set).
 """
 
 from __future__ import annotations
@@ -105,6 +129,7 @@ from _common import (  # noqa: E402
 )
 
 QUICK = {"n": 100, "only": "grid", "profile": "off"}
+PARTS = ("views", "summaries", "local")
 TARGET_RATIO = 1.3  # to_networkx("multigraph") ÷ floor
 TARGET_SECONDS = 10.0  # stats(), check() (and, applied here, boundary_loops(), components())
 TARGET_CACHE = 0.010  # a second to_networkx(): "about 0"
@@ -118,6 +143,12 @@ NODE_POS = {"multigraph": True, "graph": True}
 FLOOR_VARIANTS = {"multigraph": ("edges", "nodes+pos", "same graph"), "graph": ("edges", "nodes", "same graph")}
 #: ... and the one the ratio and the verdict use.
 FLOOR_OF = {"multigraph": "nodes+pos", "graph": "nodes"}
+#: The local queries (SPEC §6) and their targets in seconds (SPEC §9).
+LOCAL = {"shortest_path": 0.050, 'shortest_path "length"': 0.050, "k_ring(v, 3)": 0.005}
+LOCAL_RUNS = 5  # fresh processes (pairs) per local figure; the median is the figure
+WARM_CALLS = 20  # the same call again in that process: the warm median, a note
+PATH_EDGES = 10  # how far apart a path's two vertices are, in edges
+RING = 3
 
 
 # ==========================================================================
@@ -506,8 +537,131 @@ def job_summary(spec: dict) -> dict:
     return out
 
 
+# ==========================================================================
+# Local queries (SPEC §6) and memory
+
+
+def lightest_length(u, v, keydict) -> float:
+    """The weight of ``graph … path --weight length``: the lightest parallel edge's length."""
+    return min(d["length"] for d in keydict.values())
+
+
+def job_local_floor(spec: dict) -> dict:
+    """networkx's answers on a whole graph built for the purpose; picks the pairs (a, b PATH_EDGES apart)."""
+    a = Arrays.load(spec["arrays"])
+    xyz = a.xyz[np.searchsorted(a.vid, a.u)], a.xyz[np.searchsorted(a.vid, a.v)]
+    lengths = np.sqrt(((xyz[0] - xyz[1]) ** 2).sum(axis=1))
+
+    def build():
+        g = nx.MultiGraph()
+        add_nodes(g, a, True)
+        g.add_edges_from(zip(a.u.tolist(), a.v.tolist(), a.key.tolist(), ({"length": x} for x in lengths.tolist())))
+        return g
+
+    gc.collect()
+    with gc_paused():
+        run = timed(build)
+    g = run.result
+    rng = np.random.default_rng(spec["seed"])
+    joined = np.unique(np.concatenate([a.u, a.v]))
+    pairs, queries = [], {name: [] for name in LOCAL}
+    while len(pairs) < LOCAL_RUNS:
+        s = int(rng.choice(joined))
+        t0 = time.perf_counter()
+        ring = nx.single_source_shortest_path_length(g, s, cutoff=RING)
+        queries["k_ring(v, 3)"].append(time.perf_counter() - t0)
+        far = [v for v, d in nx.single_source_shortest_path_length(g, s, cutoff=PATH_EDGES).items() if d == PATH_EDGES]
+        if not far:
+            continue
+        t = int(far[int(rng.integers(len(far)))])
+        t0 = time.perf_counter()
+        hops = len(nx.shortest_path(g, s, t)) - 1
+        queries["shortest_path"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        path = nx.shortest_path(g, s, t, weight=lightest_length)
+        queries['shortest_path "length"'].append(time.perf_counter() - t0)
+        total = sum(lightest_length(u, v, g[u][v]) for u, v in zip(path, path[1:]))
+        pairs.append({"a": s, "b": t, "edges": hops, "length": total, "ring": sorted(ring)})
+    KEEP.append(g)
+    return {"build": run.seconds, "rss": maxrss(), "pairs": pairs,
+            "queries": {k: float(np.median(v)) for k, v in queries.items()}}
+
+
+def job_local(spec: dict) -> dict:
+    """One local query, cold: the first call in this process on a freshly opened store; then warm calls."""
+    pair, query = spec["pair"], spec["query"]
+    with contextlib.closing(hestore.open(url_of(spec))) as store:
+        mesh = store.mesh(spec["mesh"])
+        a, b = hestore.Vertex(mesh, pair["a"]), hestore.Vertex(mesh, pair["b"])
+        if query == "k_ring(v, 3)":
+            def call():
+                return sorted(v.id for v in mesh.k_ring(a, RING))
+        else:
+            weight = "length" if "length" in query else None
+
+            def call():
+                return [v.id for v in mesh.shortest_path(a, b, weight)]
+
+        settle(spec)
+        run = timed(call, profile=spec.get("profile", False))
+        calls, _, _ = time_each(lambda _: call(), range(WARM_CALLS))
+    problems = path_problems(Arrays.load(spec["arrays"]), pair, query, run.result)  # after the timing
+    return {"seconds": run.seconds, "cpu": run.cpu, "problems": problems, "warm": float(np.median(calls)) / 1e9,
+            "profile": run.profile, "dominant": run.dominant}
+
+
+def current_rss() -> int:
+    """This process's resident set now, in bytes (Linux ``/proc/self/statm``)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def job_memory(spec: dict) -> dict:
+    """What one graph holds in RSS: hestore's ``to_networkx("multigraph")``, or the bare networkx floor."""
+    if spec["variant"] == "bare":
+        a = Arrays.load(spec["arrays"])
+        u, v, k = a.u, a.v, a.key
+        gc.collect()
+        before = current_rss()
+        with gc_paused():
+            g = nx.MultiGraph()
+            g.add_edges_from(zip(u.tolist(), v.tolist(), k.tolist()))
+    else:
+        store = hestore.open(url_of(spec))
+        mesh = store.mesh(spec["mesh"])
+        gc.collect()
+        before = current_rss()
+        g = mesh.to_networkx("multigraph")
+        KEEP.append(store)
+    gc.collect()
+    held = current_rss() - before
+    KEEP.append(g)
+    return {"held": held, "peak": maxrss(), "nodes": g.number_of_nodes(), "graph_edges": g.number_of_edges()}
+
+
+def path_problems(a: Arrays, pair: dict, query: str, answer: list[int]) -> list[str]:
+    """How a local answer differs from networkx's (empty when it agrees)."""
+    if query == "k_ring(v, 3)":
+        return [] if answer == pair["ring"] else [f"k_ring has {len(answer)} vertices, networkx {len(pair['ring'])}"]
+    if not answer or answer[0] != pair["a"] or answer[-1] != pair["b"]:
+        return [f"the path does not run from {pair['a']} to {pair['b']}: {answer[:3]} … {answer[-3:]}"]
+    p = np.array(answer, dtype=np.int64)
+    lo, hi = np.minimum(p[:-1], p[1:]), np.maximum(p[:-1], p[1:])
+    base = int(max(a.u.max(), a.v.max())) + 1
+    edges = np.minimum(a.u, a.v) * base + np.maximum(a.u, a.v)
+    if not np.isin(lo * base + hi, edges).all():
+        return ["the path steps between vertices no edge joins"]
+    if "length" not in query:
+        ok = len(answer) - 1 == pair["edges"]
+        return [] if ok else [f"the path has {len(answer) - 1} edges, networkx's {pair['edges']}"]
+    xyz = a.xyz[np.searchsorted(a.vid, p)]
+    total = float(np.sqrt(((xyz[1:] - xyz[:-1]) ** 2).sum(axis=1)).sum())
+    ok = abs(total - pair["length"]) <= 1e-9 * max(1.0, pair["length"])
+    return [] if ok else [f"the path is {total!r} long, networkx's {pair['length']!r}"]
+
+
 JOBS = {"setup": job_setup, "fetch": job_fetch, "build": job_build, "to_networkx": job_to_networkx,
-        "summary": job_summary}
+        "summary": job_summary, "local_floor": job_local_floor, "local": job_local, "memory": job_memory}
 
 
 # ==========================================================================
@@ -543,9 +697,17 @@ def main(argv=None) -> int:
     ap = Parser(__doc__, quick=QUICK, grid=710, meshes=True, children=True,
                 workdir_help="where SQLite files and arrays go (default: a temporary folder, removed at the end)",
                 profile="rerun a figure under cProfile when it is over its target (default), always, or never")
+    ap.add_argument("--parts", default=",".join(PARTS),
+                    help="what to measure: views (to_networkx and its floors), summaries, local (the local "
+                         "queries and to_networkx's memory) (default all)")
+    ap.add_argument("--seed", type=int, default=1, help="random seed of the local queries' pairs (default 1)")
     args = ap.parse_args(argv)
     if args.child:
         return child_main(JOBS, args.child)
+    parts = [p.strip() for p in args.parts.split(",") if p.strip()]
+    for p in parts:
+        if p not in PARTS:
+            ap.error(f"unknown part {p!r} (choose from {', '.join(PARTS)})")
 
     backends = selected_backends(ap, args)
     only, skipped = selected_meshes(ap, args)
@@ -584,7 +746,9 @@ def main(argv=None) -> int:
                         del arrays[m]
                         continue
                     spec["arrays"] = arrays[m]
-                    for kind in KINDS:
+                    if "local" in parts:
+                        run_local(runner, spec, first, bname, m, args, builds, results, profiles)
+                    for kind in KINDS if "views" in parts else ():
                         if first:  # the builds do not depend on the backend: once per mesh
                             form = None
                             for variant in FLOOR_VARIANTS[kind]:
@@ -594,7 +758,7 @@ def main(argv=None) -> int:
                                 if r and variant == "edges" and kind == "multigraph":
                                     form = r["form"]
                         results[(bname, m, kind)] = runner.run(job="to_networkx", kind=kind, **spec)
-                    for what in SUMMARIES:
+                    for what in SUMMARIES if "summaries" in parts else ():
                         results[(bname, m, what)] = runner.run(job="summary", what=what, **spec)
                     # Profiles of whatever is over its target.
                     for key in [*KINDS, *SUMMARIES]:
@@ -628,6 +792,60 @@ def main(argv=None) -> int:
     problems = report(args, only, backends, setups, fetches, builds, results, profiles, skipped, runner.errors,
                       pg_version, load_start, time.perf_counter() - t_start)
     return 1 if problems else 0
+
+
+def run_local(runner, spec, first, bname, m, args, builds, results, profiles) -> None:
+    """The local queries' floor (once per mesh), each query cold in LOCAL_RUNS fresh processes, and the memory."""
+    if first:
+        builds[(m, "local")] = runner.run(job="local_floor", seed=args.seed, **dict(spec, backend=None))
+        builds[(m, "memory")] = runner.run(job="memory", variant="bare", **dict(spec, backend=None))
+    floor = builds.get((m, "local"))
+    if not floor:
+        return
+    for query, target in LOCAL.items():
+        runs = [runner.run(job="local", query=query, pair=pair, **spec) for pair in floor["pairs"]]
+        results[(bname, m, query)] = runs
+        slow = [r for r in runs if r and r["seconds"] > target]
+        if args.profile == "all" or (args.profile == "over" and slow):
+            pair = floor["pairs"][runs.index(slow[0]) if slow else 0]
+            p = runner.run(job="local", query=query, pair=pair, profile=True, **spec)
+            if p:
+                profiles.append((f"{bname} {mesh_label(m, args.n)}: {query} under cProfile "
+                                 f"({p['seconds'] * 1e3:.2f} ms with the profiler on)", p))
+    results[(bname, m, "memory")] = runner.run(job="memory", variant="to_networkx", **spec)
+
+
+def local_report(bname, m, label, fetch, builds, results, figures, notes, problems) -> None:
+    floor = builds.get((m, "local"))
+    if not floor:
+        return
+    fe = fetch_best(fetch, "edges")[0] + fetch_best(fetch, "vertices")[0] if fetch else None
+    for query, target in LOCAL.items():
+        runs = [r for r in results.get((bname, m, query)) or [] if r]
+        if not runs:
+            continue
+        cold = sorted(r["seconds"] for r in runs)
+        median_cold = cold[len(cold) // 2]
+        q = floor["queries"][query]
+        total = None if fe is None else fe + floor["build"] + q
+        parts = (f"fetch {fe:.2f} + nx.MultiGraph with lengths {floor['build']:.2f} (peak RSS "
+                 f"{fmt_mib(floor['rss'])}) + the query {fmt_time(q)}") if fe is not None else ""
+        figures.append(Figure(f"{query}, cold", bname, median_cold, total, f"≤ {target * 1e3:g} ms",
+                              verdict(median_cold <= target), label, n=len(runs),
+                              cpu=float(np.median([r["cpu"] for r in runs])), floor_parts=parts))
+        notes.append(f"{bname} {label}: {query}: cold {', '.join(fmt_time(c) for c in cold)} ({len(runs)} fresh "
+                     f"processes, the median is the figure); warm (the same call again, median of {WARM_CALLS}) "
+                     f"{fmt_time(float(np.median([r['warm'] for r in runs])))}; networkx on its prebuilt graph "
+                     f"{fmt_time(q)}")
+        for pair, r in zip(floor["pairs"], results.get((bname, m, query)) or []):
+            if r:
+                problems += [f"{bname} {label}: {query} from {pair['a']} to {pair['b']}: {x}" for x in r["problems"]]
+    mem, bare = results.get((bname, m, "memory")), builds.get((m, "memory"))
+    if mem and bare:
+        notes.append(f"{bname} {label}: MEMORY to_networkx(\"multigraph\") holds {fmt_mib(mem['held'])} (RSS after "
+                     f"− before; peak RSS {fmt_mib(mem['peak'])}); floor: the bare nx.MultiGraph().add_edges_from("
+                     f"(u, v, key)) {fmt_mib(bare['held'])} (peak {fmt_mib(bare['peak'])}): "
+                     f"{mem['held'] / bare['held']:.2f}× (no SPEC target)")
 
 
 def figure_name(key: str) -> str:
@@ -714,8 +932,10 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
                 figures.append(Figure(f"{what}()", bname, r["seconds"], floor, f"≤ 10 s{applied}",
                                       verdict(r["seconds"] <= TARGET_SECONDS), label, cpu=r["cpu"], rss=r["rss"],
                                       floor_parts=parts))
-            problems += summary_problems(bname, m, label, args.n, setup, fetch, ctx,
-                                         {w: results.get((bname, m, w)) for w in SUMMARIES}, notes)
+            if any(results.get((bname, m, w)) for w in SUMMARIES):
+                problems += summary_problems(bname, m, label, args.n, setup, fetch, ctx,
+                                             {w: results.get((bname, m, w)) for w in SUMMARIES}, notes)
+            local_report(bname, m, label, fetch, builds, results, figures, notes, problems)
     for m, d in digests.items():
         if len(set(d.values())) > 1:
             problems.append(f"{mesh_label(m, args.n)}: the backends store different edge arrays or positions")

@@ -13,8 +13,14 @@ Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE [
 ``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``, ``log NAME [--limit N]``,
 ``diff NAME A B``, ``undo NAME``, ``redo NAME``, ``revert NAME R``,
 ``info NAME`` (`hestore.Mesh.stats` and `hestore.Mesh.properties`), ``check NAME``, ``graph NAME
-components|path A B [--weight W]|degree-histogram|export FILE`` (networkx, through
-`hestore.Mesh.to_networkx`), ``db upgrade``, ``db current``.
+components|path A B [--weight W]|neighbors V [--k K]|degree-histogram|export FILE``, ``db upgrade``,
+``db current``.
+
+``graph NAME path A B`` (fewest edges, or ``--weight length``) and ``graph NAME neighbors V --k K``
+(the ids of the vertices within K edges of V, V included, ascending, on one line) are local
+queries (`hestore.Mesh.shortest_path`, `hestore.Mesh.k_ring`): they read the store around their
+vertices and never build the whole graph. ``path --weight`` by an edge property, ``degree-histogram``
+and ``export`` go through networkx (`hestore.Mesh.to_networkx`).
 
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
 found no path, 2 error, 130 interrupted.
@@ -520,34 +526,59 @@ def _number(x: float | int) -> str:
 
 
 def _cmd_graph_path(args: argparse.Namespace) -> int:
-    import networkx as nx
-
     weight = args.weight
     with _open(args) as store:
         mesh = store.mesh(args.name)
-        for i in (args.a, args.b):
-            mesh.vertex(i)  # an unknown id: ElementNotFoundError, one line, exit 2
+        a, b = mesh.vertex(args.a), mesh.vertex(args.b)  # an unknown id: ElementNotFoundError, one line, exit 2
         if weight is not None:
             problem = _weight_problem(mesh, weight)
             if problem:
                 return _error(problem)
-        graph = mesh.to_networkx("multigraph", attrs=None if weight is None else [weight])
-    weigh = None if weight is None else _weigher(graph, weight)
+        if weight is None or (weight == _LENGTH and _LENGTH not in mesh.properties("edge")):
+            # Fewest edges or least length: a local search in the store (hestore.Mesh.shortest_path),
+            # which reads the stars it expands and never builds the whole graph.
+            try:
+                path = mesh.shortest_path(a, b, weight)
+            except hestore.NoPathError:
+                return _no_path(args)
+            total = None if weight is None else sum(_distance(u.position, v.position) for u, v in zip(path, path[1:]))
+            return _print_path([v.id for v in path], weight, total)
+        graph = mesh.to_networkx("multigraph", attrs=[weight])
+    # An edge property as the weight: networkx on the multigraph with that attribute.
+    import networkx as nx
+
+    weigh = _weigher(graph, weight)
     try:
-        path = nx.shortest_path(graph, args.a, args.b, weight=weigh)
+        ids = nx.shortest_path(graph, args.a, args.b, weight=weigh)
     except _Unweighed as exc:
         return _error(f"cannot weigh the paths of {args.name!r} by {weight}: {exc}")
     except nx.NetworkXNoPath:
-        print(
-            f"no path from vertex {args.a} to vertex {args.b} in {args.name!r}: "
-            "they are in different components"
-        )
-        return 1
-    print("path: " + " ".join(str(v) for v in path))
-    print(f"length: {_count(len(path) - 1, 'edge')}")
+        return _no_path(args)
+    return _print_path(ids, weight, sum(weigh(u, v, graph[u][v]) for u, v in zip(ids, ids[1:])))
+
+
+def _distance(p: tuple, q: tuple) -> float:
+    return sum((x - y) ** 2 for x, y in zip(p, q)) ** 0.5
+
+
+def _no_path(args: argparse.Namespace) -> int:
+    print(f"no path from vertex {args.a} to vertex {args.b} in {args.name!r}: they are in different components")
+    return 1
+
+
+def _print_path(ids: list[int], weight: str | None, total: float | None) -> int:
+    print("path: " + " ".join(map(str, ids)))
+    print(f"length: {_count(len(ids) - 1, 'edge')}")
     if weight is not None:
-        total = sum(weigh(u, v, graph[u][v]) for u, v in zip(path, path[1:]))
         print(f"total {weight}: {_number(total)}")
+    return 0
+
+
+def _cmd_graph_neighbors(args: argparse.Namespace) -> int:
+    with _open(args) as store:
+        mesh = store.mesh(args.name)
+        ring = mesh.k_ring(mesh.vertex(args.v), args.k)
+    print(" ".join(str(i) for i in sorted(v.id for v in ring)))
     return 0
 
 
@@ -788,11 +819,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     graph = commands.add_parser(
         "graph",
-        help="graph analytics on a mesh's connectivity: components, path, degree-histogram, export",
-        description="Graph analytics on a mesh's committed connectivity, through networkx "
-        "(hestore.Mesh.to_networkx). components, path and degree-histogram use the multigraph: "
+        help="graph analytics on a mesh's connectivity: components, path, neighbors, degree-histogram, export",
+        description="Graph analytics on a mesh's committed connectivity, on its multigraph: "
         "one node per vertex, isolated ones included, one edge per edge, self-loops and parallel "
-        "edges kept.",
+        "edges kept. path (by edges or length) and neighbors are local queries that read the "
+        "store around their vertices (hestore.Mesh.shortest_path, hestore.Mesh.k_ring); "
+        "degree-histogram, export and path by an edge property build the networkx graph "
+        "(hestore.Mesh.to_networkx).",
     )
     graph.add_argument("name", metavar="NAME", help="the mesh")
     graph_commands = graph.add_subparsers(dest="graph_command", metavar="GRAPH_COMMAND", required=True)
@@ -822,6 +855,20 @@ def build_parser() -> argparse.ArgumentParser:
         "default) or with a negative one is an error (default: every edge weighs 1)",
     )
     path.set_defaults(func=_cmd_graph_path)
+    neighbors = graph_commands.add_parser(
+        "neighbors",
+        help="the vertices within K edges of vertex V (its k-ring), V included",
+        description="Print the ids of the vertices within K edges of vertex V (hestore.Mesh.k_ring: "
+        "V itself, the vertices joined to it by an edge, theirs, and so on, K levels deep), "
+        "ascending, on one line separated by spaces. Read from the store around V, without "
+        "building the whole graph.",
+    )
+    neighbors.add_argument("v", metavar="V", type=int, help="the id of the vertex at the centre")
+    neighbors.add_argument(
+        "--k", metavar="K", type=int, default=1,
+        help="how many edges away at most, an integer >= 0 (default: 1, the vertex and its neighbours)",
+    )  # fmt: skip
+    neighbors.set_defaults(func=_cmd_graph_neighbors)
     histogram = graph_commands.add_parser(
         "degree-histogram",
         help="how many vertices have each degree (a self-loop counts twice)",

@@ -21,6 +21,7 @@ Hierarchy::
     │   ├── NonManifoldError                 OpenMesh's "complex vertex"
     │   ├── VertexNotFreeError
     │   └── PolicyError                      loop or parallel edge forbidden
+    ├── NoPathError                          `Mesh.shortest_path`: the two vertices are not connected
     ├── InvariantViolationError              `Mesh.validate` found violations
     ├── StoreError                           the database itself: unreadable, read-only, ...
     │   ├── StoreBusyError                   a lock could not be had in time
@@ -54,6 +55,7 @@ __all__ = [
     "EulerError",
     "NonOrientableError",
     "ReadOnlyError",
+    "NoPathError",
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
@@ -266,6 +268,13 @@ class Violation:
 
     def __str__(self) -> str:
         return f"{self.code} {self.kind} {self.ids[0]}: {self.message}"
+
+
+class NoPathError(HestoreError):
+    """No path joins the two vertices given to `Mesh.shortest_path`: they are in different components.
+
+    The message names both vertices and the mesh.
+    """
 
 
 class InvariantViolationError(HestoreError):

@@ -9,7 +9,9 @@ cached per store, mesh and kind, and rebuilt only when the mesh's committed
 revision has changed. ``attrs`` adds properties (and the derived edge
 ``length``) as node and edge attributes: each property's values are read as
 one column, in the same snapshot as the connectivity, and set on the
-attribute dicts the builders make.
+attribute dicts the builders make. ``vertices`` makes the view induced by
+some vertices with the same builders, fed the rows of those vertices and of
+the half-edges between them (`hestore.traversal`) instead of whole columns.
 
 How a graph is made: the columns it needs are read in bulk, in one snapshot
 together with the revision (`hestore.columns.read_columns`); the grouping of
@@ -49,7 +51,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import properties as props
-from hestore import schema
+from hestore import schema, traversal
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError
@@ -71,8 +73,10 @@ LENGTH = "length"
 CACHE = "graphs"
 
 
-def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None) -> nx.Graph:
-    """A frozen networkx graph of the mesh's committed state.
+def to_networkx(
+    mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None, vertices: Iterable[int] | None = None
+) -> nx.Graph:
+    """A frozen networkx graph of the mesh's committed state, or the view induced by some of its vertices.
 
     Parameters
     ----------
@@ -135,6 +139,15 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
         multigraph use the lightest parallel edge), any other property the
         value of the lowest edge id that has one, and ``"length"`` their
         common length (they join the same two vertices).
+    vertices : iterable of int, optional
+        For the vertex kinds (``"multigraph"``, ``"graph"``, ``"halfedge"``):
+        the view induced by these vertex ids — equal to the whole view's
+        ``G.subgraph(vertices)``, with the same nodes, edges, keys and
+        attributes, but read from the rows of those vertices and the
+        half-edges between them only (`hestore.traversal.halfedges_among`),
+        so it costs with the set, not with the mesh. Like the other local
+        queries (`hestore.traversal`) it reads the mesh as every read does,
+        an open block's own edits included, and is not cached.
 
     Returns
     -------
@@ -149,7 +162,8 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     Raises
     ------
     InvalidInputError
-        ``kind`` is not one of `KINDS`; ``attrs`` is not a list of names;
+        ``kind`` is not one of `KINDS`; ``vertices`` is given for the
+        ``"dual"``; ``attrs`` is not a list of names;
         a name in ``attrs`` is one of the view's own attributes where it
         would go (``pos``, ``halfedges``, ``edges``, …).
     PropertyNotFoundError
@@ -167,7 +181,8 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     block it is read through a second connection and does not show the
     block's edits — except for an in-memory SQLite store, which has only one
     connection; there it shows the block's state, and such a graph is not
-    cached.
+    cached. A view induced by ``vertices`` is a local query instead: it
+    shows what every read shows, the block's own edits included.
 
     While the committed revision is unchanged, the same graph object is
     returned again (one per kind and list of ``attrs``), so do not modify
@@ -239,10 +254,28 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     ({'pos': (0.0, 0.0, 0.0), 'label': 'start'}, {'pos': (9.0, 0.0, 0.0)})
     >>> G.edges[a.id, b.id, 0]
     {'halfedges': (0, 1), 'polygons': (0, None), 'length': 9.0}
+
+    The view induced by a few vertices, read without the rest of the mesh:
+
+    >>> H = w.to_networkx(vertices=[a, b, p], attrs=["length"])
+    >>> list(H.edges(keys=True, data="length"))
+    [(0, 1, 0, 9.0), (0, 4, 4, 5.0)]
+    >>> S = w.to_networkx(attrs=["length"]).subgraph([a.id, b.id, p.id])  # the same, from the whole view
+    >>> dict(S.nodes(data=True)) == dict(H.nodes(data=True))
+    True
+    >>> list(S.edges(keys=True, data=True)) == list(H.edges(keys=True, data=True))
+    True
     """
     if kind not in KINDS:
         raise InvalidInputError(f"unknown graph kind {kind!r}; the kinds are {', '.join(map(repr, KINDS))}")
     names = _names(attrs)
+    if vertices is not None:
+        if kind == "dual":
+            raise InvalidInputError(
+                "vertices= takes the vertex kinds ('multigraph', 'graph', 'halfedge'); "
+                "the dual's nodes are polygons"
+            )
+        return _induced(mesh, kind, names, vertices)
     key = (mesh.id, kind, names) if names else (mesh.id, kind)
     with mesh.session.snapshot(mesh.ref, committed=True) as snap:
         # Only an in-memory SQLite store inside a block reads its own
@@ -266,6 +299,45 @@ def to_networkx(mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | N
     nx.freeze(G)
     _remember(cache, key, revision, G)
     return G
+
+
+def _induced(mesh: "Mesh", kind: str, names: tuple[str, ...], vertices: Iterable[int]) -> nx.Graph:
+    """The view of ``kind`` induced by the vertex ids ``vertices``: the builders of the whole view, fed their rows.
+
+    The vertices' rows and the half-edges between them are all the
+    builders need: with them they make the same dicts, in the same order,
+    as the whole view restricted to those nodes.
+    """
+    ids = sorted(set(vertices))
+    with mesh.session.snapshot(mesh.ref) as snap:
+        plan = _plan(mesh, snap, kind, names) if names else None
+        v_rows = traversal.vertex_rows(mesh, ids) if ids else []
+        h_rows = traversal.halfedges_among(mesh, ids) if ids else []
+        columns = _induced_columns(kind, v_rows, h_rows)
+        extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        revision = snap.revision
+    with _gc_paused():
+        G = _BUILDERS[kind](*columns, extra=extra)
+    G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
+    nx.freeze(G)
+    return G
+
+
+def _induced_columns(kind: str, v_rows: list[tuple], h_rows: list[tuple]) -> list:
+    """The columns `_REQUESTS` would read, of the rows `hestore.traversal` read (both ascending by id)."""
+    unplaced = [r[1] is None or r[2] is None or r[3] is None for r in v_rows]
+    coords = [np.array([0.0 if u else r[k] for r, u in zip(v_rows, unplaced)], dtype=np.float64) for k in (1, 2, 3)]
+    vertices = [np.array([r[0] for r in v_rows], dtype=np.int64), *coords, np.array(unplaced, dtype=np.int64)]
+    names = ("id", "origin", "twin", "edge")
+    h = {name: np.array([r[k] for r in h_rows], dtype=np.int64) for k, name in enumerate(names)}
+    h["polygon"] = np.array([-1 if r[4] is None else r[4] for r in h_rows], dtype=np.int64)
+    edge_rows = sorted({(r[3], r[6]) for r in h_rows})
+    edges = [np.array([e for e, _ in edge_rows], dtype=np.int64), np.array([x for _, x in edge_rows], dtype=np.int64)]
+    if kind == "multigraph":
+        return [vertices, [h["id"], h["origin"], h["twin"], h["polygon"]], edges]
+    if kind == "graph":
+        return [vertices, [h["id"], h["origin"], h["twin"]], edges]
+    return [vertices, [h["id"], h["origin"], h["twin"], h["edge"], h["polygon"]]]
 
 
 #: How many graphs with ``attrs`` the cache keeps per mesh and kind (the most recently built).
@@ -569,6 +641,24 @@ def _or_none(values: np.ndarray) -> list:
     return out
 
 
+def _shared_ids(*columns: np.ndarray) -> list[list]:
+    """Each column's ``tolist()``, with the NULL marker ``-1`` as None and one int object per distinct id.
+
+    An id that recurs (a polygon on the sides of several edges, an edge on
+    both its half-edges, a vertex at the ends of several) is then one
+    object, not one per use: 32 bytes saved per repeat (about 90 MiB on the
+    1 M grid's multigraph, 4.5 % of it).
+    """
+    values = np.concatenate(columns) if columns else np.zeros(0, dtype=np.int64)
+    if not len(values):
+        return [[] for _ in columns]
+    distinct, inverse = np.unique(values, return_inverse=True)
+    pool = [None if i < 0 else i for i in distinct.tolist()]
+    shared = list(map(pool.__getitem__, inverse.tolist()))
+    n = len(columns[0])
+    return [shared[k * n : (k + 1) * n] for k in range(len(columns))]
+
+
 def _vertex_nodes(v_id, x, y, z, unplaced) -> tuple[list, list]:
     positions = list(zip(x.tolist(), y.tolist(), z.tolist()))
     for i in np.flatnonzero(unplaced).tolist():
@@ -681,7 +771,7 @@ def _multigraph(vertices, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES)
 
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
-        sides = zip(_or_none(p0[order]), _or_none(p1[order]))
+        sides = zip(*_shared_ids(p0[order], p1[order]))
         out = [{"halfedges": hs, "polygons": ps} for hs, ps in zip(ends, sides)]
         _apply(out, extra.edges, order)
         return out
@@ -713,7 +803,7 @@ def _dual(polygons, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx
 
     def data(order):
         ends = zip(h0[order].tolist(), h1[order].tolist())
-        corners = zip(o0[order].tolist(), o1[order].tolist())
+        corners = zip(*_shared_ids(o0[order], o1[order]))
         out = [{"halfedges": hs, "vertices": vs} for hs, vs in zip(ends, corners)]
         _apply(out, extra.edges, inner[order])
         return out
@@ -730,7 +820,7 @@ def _halfedge(vertices, halfedges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.Mu
     order, a, b, keys, first = _groups(origin, target, h_id)
     data = [
         {"polygon": p, "edge": e, "twin": t}
-        for p, e, t in zip(_or_none(h_polygon[order]), h_edge[order].tolist(), h_twin[order].tolist())
+        for p, e, t in zip(*_shared_ids(h_polygon[order]), *_shared_ids(h_edge[order]), h_twin[order].tolist())
     ]
     _apply(data, extra.edges, order)
     keydicts = _keydicts(keys.tolist(), data, first)

@@ -90,7 +90,7 @@ def _versions_at(source: sa.FromClause, revision: Any, mesh: Any = None, where: 
     current = sa.select(*source.c).where(source.c.rev <= revision, *mine)
     if where is not None:
         # SQLite plans without statistics: name the index the condition fixes, as the hot reads do.
-        fixed = _fixed(where, source) | {"mesh_id"}
+        fixed = _fixed(where, source, lists=True) | {"mesh_id"}
         by_key = {c.name for c in table.primary_key} <= fixed
         for index in () if by_key else sorted(table.indexes, key=lambda ix: ix.name):
             if {c.name for c in index.columns} <= fixed:
@@ -124,11 +124,16 @@ def _moved(expr: Any, columns: dict) -> Any:
     return replacement_traverse(expr, {}, replace)
 
 
-def _fixed(condition: Any, source: Any) -> set[str]:
-    """The columns of ``source`` that the terms of ``condition`` (a conjunction) set equal to something."""
+def _fixed(condition: Any, source: Any, *, lists: bool = False) -> set[str]:
+    """The columns of ``source`` that the terms of ``condition`` (a conjunction) set equal to something.
+
+    With ``lists``, also those it sets to one of a list (``IN``): an index
+    on them is searched once per value, as for an equality.
+    """
     fixed = set()
+    kinds = (operators.eq, operators.in_op) if lists else (operators.eq,)
     for term in _conjuncts(condition):
-        if getattr(term, "operator", None) is operators.eq:
+        if getattr(term, "operator", None) in kinds:
             for side in (term.left, term.right):
                 if isinstance(side, sa.ColumnClause) and getattr(side, "table", None) is source:
                     fixed.add(side.name)

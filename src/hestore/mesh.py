@@ -19,7 +19,20 @@ from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import bulk, euler, history, interop, kernel, navigation, properties, render, schema, summary, validation
+from hestore import (
+    bulk,
+    euler,
+    history,
+    interop,
+    kernel,
+    navigation,
+    properties,
+    render,
+    schema,
+    summary,
+    traversal,
+    validation,
+)
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -976,7 +989,9 @@ class Mesh:
 
     # -- graph views and bulk export -------------------------------------------
 
-    def to_networkx(self, kind: str = "multigraph", attrs: Iterable[str] | None = None) -> "nx.Graph":
+    def to_networkx(
+        self, kind: str = "multigraph", attrs: Iterable[str] | None = None, *, vertices: Iterable[Vertex] | None = None
+    ) -> "nx.Graph":
         """A frozen networkx graph of the committed state; see `hestore.graphs.to_networkx`.
 
         Parameters
@@ -988,6 +1003,13 @@ class Mesh:
             An element without a value (a property without a default,
             unset) has no such attribute. An unknown name raises
             `hestore.PropertyNotFoundError`.
+        vertices : iterable of Vertex, optional
+            For the vertex kinds: the view induced by these vertices, equal
+            to the whole view's ``subgraph`` of their ids, read from their
+            rows only (a local query: it sees an open block's edits, as
+            `k_ring` does). A handle of another mesh or of a removed vertex
+            raises `hestore.ElementNotFoundError`; anything but handles,
+            or ``kind="dual"``, `hestore.InvalidInputError`.
 
         Examples
         --------
@@ -1007,7 +1029,49 @@ class Mesh:
         # Imported here, not at the top: it imports networkx, which `import hestore` need not pay for.
         from hestore import graphs
 
-        return graphs.to_networkx(self, kind, attrs)
+        ids = None if vertices is None else self._vertex_ids(vertices, "vertices")
+        return graphs.to_networkx(self, kind, attrs, ids)
+
+    def _vertex_ids(self, vertices: object, what: str) -> list[int]:
+        """The ids of an iterable of `Vertex` handles of this mesh."""
+        if isinstance(vertices, (str, bytes, dict, Handle)) or not hasattr(vertices, "__iter__"):
+            raise InvalidInputError(
+                f"{what} is an iterable of Vertex handles, not {type(vertices).__name__} {vertices!r}"
+            )
+        return [self._own(v, Vertex, f" in {what}") for v in vertices]
+
+    # -- local graph queries ----------------------------------------------------
+
+    def k_ring(self, v: Vertex, k: int) -> set[Vertex]:
+        """The vertices within ``k`` edges of ``v``, ``v`` included; see `hestore.traversal.k_ring`.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> a, b, c, d = (mesh.add_vertex() for _ in range(4))
+        >>> ab, bc, loop = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(a, a)
+        >>> sorted(v.id for v in mesh.k_ring(a, 1)), sorted(v.id for v in mesh.k_ring(a, 5))
+        ([0, 1], [0, 1, 2])
+        """
+        return traversal.k_ring(self, self._own(v, Vertex, " for v"), k)
+
+    def shortest_path(self, a: Vertex, b: Vertex, weight: str | None = None) -> list[Vertex]:
+        """A shortest path from ``a`` to ``b``: fewest edges, or least total ``"length"``; see
+        `hestore.traversal.shortest_path`.
+
+        Raises `hestore.NoPathError` when no path joins them.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> a, b, c = (mesh.add_vertex((x, 0, 0)) for x in (0, 1, 3))
+        >>> ab, bc, ac = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(a, c)
+        >>> mesh.shortest_path(a, c), mesh.shortest_path(a, c, weight="length"), mesh.shortest_path(b, b)
+        ([Vertex(0), Vertex(2)], [Vertex(0), Vertex(2)], [Vertex(1)])
+        """
+        return traversal.shortest_path(self, self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b"), weight)
 
     def dual(self, name: str) -> bulk.ImportReport:
         """Store the dual of this closed mesh as a new mesh; see `hestore.bulk.dual`.
