@@ -37,7 +37,7 @@ def test_docstring_examples(name, tmp_path, monkeypatch):
 DOCS = pathlib.Path(__file__).resolve().parents[1] / "docs"
 #: Pages whose ```python blocks run, in order, as one script; a block marked ```python no-run is skipped (it
 #: shows what needs something the tests do not have).
-RUN_PAGES = ("properties.md", "editing.md", "repair.md", "history.md", "render.md")
+RUN_PAGES = ("properties.md", "editing.md", "repair.md", "history.md", "render.md", "coming-from.md")
 #: Pages whose examples import the shared meshes by name run in their folder (they only read there).
 IN_MESHES = ("repair.md",)
 

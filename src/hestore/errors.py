@@ -98,7 +98,7 @@ class PropertyNotFoundError(HestoreError, KeyError):
 
 
 class RevisionNotFoundError(HestoreError, KeyError):
-    """A revision of a mesh that was never made or is no longer kept (SPEC §4.1)."""
+    """A revision of a mesh that was never made or is no longer kept."""
 
     def __str__(self) -> str:  # KeyError would show the message quoted
         return str(self.args[0]) if self.args else ""
@@ -195,7 +195,7 @@ class NonOrientableError(TopologyError):
 
 
 class EulerError(TopologyError):
-    """An Euler operator's precondition does not hold (SPEC §3.1); nothing was changed.
+    """An Euler operator's precondition does not hold; nothing was changed.
 
     Parameters
     ----------

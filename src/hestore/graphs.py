@@ -83,7 +83,7 @@ def to_networkx(
     mesh : hestore.Mesh
         The mesh.
     kind : {"multigraph", "graph", "halfedge", "dual"}
-        Which graph (SPEC §6):
+        Which graph:
 
         ``"multigraph"``
             `networkx.MultiGraph`. Nodes: vertex ids, isolated vertices
@@ -109,7 +109,7 @@ def to_networkx(
             ``h1``, the mesh edge's end points). A polygon that meets itself
             across an edge has a self-loop.
     attrs : list of str, optional
-        Names of properties (SPEC §3.2) to put on the graph as attributes,
+        Names of properties to put on the graph as attributes,
         and the derived `LENGTH`, ``"length"`` (a single string is one
         name). Each name goes where its property lives:
 

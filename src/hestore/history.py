@@ -68,7 +68,7 @@ class Diff:
     """What differs between two revisions of a mesh: ``{kind: sorted list of ids}`` per attribute.
 
     Net: the state at one compared with the state at the other. An element
-    is *changed* when one of its stored references (SPEC §2), its position
+    is *changed* when one of its stored references (``origin``, ``next``, ``twin``, …), its position
     or one of its property values differs; writing back an equal value is
     no change, and an element created and removed in between appears
     nowhere.

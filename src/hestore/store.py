@@ -186,7 +186,7 @@ class Store:
         allow_loops, allow_multi_edges : bool
             Whether self-loop edges and parallel edges may be added.
         history : bool
-            Whether every revision is kept (SPEC §4.1). Without, nothing
+            Whether every revision is kept. Without, nothing
             is recorded: `Mesh.history` is empty and only the current
             revision can be read.
 
