@@ -1022,13 +1022,21 @@ def test_check_and_stats_report_their_stages(store):
     assert calls == [("read", 0, 1), ("read", 1, 1), ("stats", 0, 1), ("stats", 1, 1)]
 
 
-def test_check_and_info_show_progress_when_slow(db_url, capsys, monkeypatch):
+def test_long_commands_show_progress_when_slow(db_url, capsys, monkeypatch, tmp_path):
     assert run(capsys, "--db", db_url, "demo")[0] == 0
+    for argv in (["check", "demo"], ["info", "demo"], ["graph", "demo", "components"]):
+        assert run(capsys, "--db", db_url, *argv)[2] == ""  # quick: nothing on stderr
     monkeypatch.setattr(cli, "_QUIET_SECONDS", 0.0)  # as if the mesh were large
     code, out, err = run(capsys, "--db", db_url, "check", "demo")
     assert (code, out) == (0, "demo: valid\n") and err.startswith("read in ") and ", check in " in err
     code, out, err = run(capsys, "--db", db_url, "info", "demo")
     assert code == 0 and "vertices" in out and err.startswith("read in ") and ", stats in " in err
+    code, out, err = run(capsys, "--db", db_url, "graph", "demo", "components")
+    assert code == 0 and err.startswith("read in ") and ", label in " in err
+    code, out, err = run(capsys, "--db", db_url, "graph", "demo", "degree-histogram")
+    assert code == 0 and err.startswith("read in ") and ", build in " in err
+    code, out, err = run(capsys, "--db", db_url, "graph", "demo", "export", str(tmp_path / "g.graphml"))
+    assert code == 0 and out.startswith("wrote") and ", write in " in err
 
 
 def test_progress_bar_after_a_failure():

@@ -25,8 +25,8 @@ and ``export`` go through networkx (`hestore.Mesh.to_networkx`).
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
 found no path, 2 error, 130 interrupted.
 
-``import``, ``export``, ``render``, and ``check`` and ``info`` when they take over a second (large
-meshes), report progress through `ProgressBar`, on stderr:
+``import``, ``export``, ``render``, and ``check``, ``info`` and the whole-graph ``graph`` commands when
+they take over a second (large meshes), report progress through `ProgressBar`, on stderr:
 a redrawn bar on a terminal, and only a plain final line elsewhere, so that
 logs carry no control characters. Results go to stdout.
 
@@ -445,7 +445,8 @@ def _cmd_graph_components(args: argparse.Namespace) -> int:
     # node with its position per vertex and an edge with its half-edges and
     # polygons per edge, only for a traversal in Python that ignores them.
     with _open(args) as store:
-        components = store.mesh(args.name).components()
+        with ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+            components = store.mesh(args.name).components(bar)
     # (size, lowest vertex id), the largest first; equal sizes by lowest id.
     sizes = sorted(((len(c), min(v.id for v in c)) for c in components), key=lambda s: (-s[0], s[1]))
     vertices = sum(size for size, _ in sizes)
@@ -543,7 +544,8 @@ def _cmd_graph_path(args: argparse.Namespace) -> int:
                 return _no_path(args)
             total = None if weight is None else sum(_distance(u.position, v.position) for u, v in zip(path, path[1:]))
             return _print_path([v.id for v in path], weight, total)
-        graph = mesh.to_networkx("multigraph", attrs=[weight])
+        with ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+            graph = mesh.to_networkx("multigraph", attrs=[weight], progress=bar)
     # An edge property as the weight: networkx on the multigraph with that attribute.
     import networkx as nx
 
@@ -586,7 +588,8 @@ def _cmd_graph_degree_histogram(args: argparse.Namespace) -> int:
     import networkx as nx
 
     with _open(args) as store:
-        graph = store.mesh(args.name).to_networkx("multigraph")
+        with ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+            graph = store.mesh(args.name).to_networkx("multigraph", progress=bar)
     histogram = nx.degree_histogram(graph)  # index = degree; a self-loop adds 2
     if not histogram:
         print(f"mesh {args.name!r} has no vertices", file=sys.stderr)
@@ -600,9 +603,11 @@ def _cmd_graph_export(args: argparse.Namespace) -> int:
     from hestore import graphio
 
     graphio.format_of(args.file)  # before any work: an unknown extension is one line, exit 2
-    with _open(args) as store:
-        graph = store.mesh(args.name).to_networkx(args.kind)
-    nodes, edges = graphio.write_graph(graph, args.file)
+    with _open(args) as store, ProgressBar(min_seconds=_QUIET_SECONDS) as bar:
+        graph = store.mesh(args.name).to_networkx(args.kind, progress=bar)
+        bar("write", 0, 1)
+        nodes, edges = graphio.write_graph(graph, args.file)
+        bar("write", 1, 1)
     size = os.path.getsize(args.file)
     kind = graphio.FORMATS[graphio.format_of(args.file)]
     print(

@@ -74,7 +74,11 @@ CACHE = "graphs"
 
 
 def to_networkx(
-    mesh: "Mesh", kind: str = "multigraph", attrs: Iterable[str] | None = None, vertices: Iterable[int] | None = None
+    mesh: "Mesh",
+    kind: str = "multigraph",
+    attrs: Iterable[str] | None = None,
+    vertices: Iterable[int] | None = None,
+    progress: Callable[[str, int, int], object] | None = None,
 ) -> nx.Graph:
     """A frozen networkx graph of the mesh's committed state, or the view induced by some of its vertices.
 
@@ -148,6 +152,9 @@ def to_networkx(
         so it costs with the set, not with the mesh. Like the other local
         queries (`hestore.traversal`) it reads the mesh as every read does,
         an open block's own edits included, and is not cached.
+    progress : callable, optional
+        ``progress(stage, done, total)`` at the start and end of ``"read"``
+        and ``"build"`` (not called for a cached graph or an induced view).
 
     Returns
     -------
@@ -291,10 +298,15 @@ def to_networkx(
         used = len(requests)
         if plan is not None and plan.length and kind == "dual":
             requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
+        report = progress or (lambda stage, done, total: None)
+        report("read", 0, 1)
         columns = snap.columns(requests)
         extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        report("read", 1, 1)
+    report("build", 0, 1)
     with _gc_paused():
         G = _BUILDERS[kind](*columns[:used], extra=extra)
+    report("build", 1, 1)
     G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
     nx.freeze(G)
     _remember(cache, key, revision, G)

@@ -296,9 +296,9 @@ class Mesh:
         """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
         return summary.boundary_loops(self)
 
-    def components(self) -> list[set[Vertex]]:
-        """Connected components of the vertex–edge graph; see `hestore.summary.components`."""
-        return summary.components(self)
+    def components(self, progress=None) -> list[set[Vertex]]:
+        """Connected components of the vertex–edge graph; see `hestore.summary.components` (and its ``progress``)."""
+        return summary.components(self, progress)
 
     # -- lookup and iteration -----------------------------------------------
 
@@ -990,7 +990,12 @@ class Mesh:
     # -- graph views and bulk export -------------------------------------------
 
     def to_networkx(
-        self, kind: str = "multigraph", attrs: Iterable[str] | None = None, *, vertices: Iterable[Vertex] | None = None
+        self,
+        kind: str = "multigraph",
+        attrs: Iterable[str] | None = None,
+        *,
+        vertices: Iterable[Vertex] | None = None,
+        progress=None,
     ) -> "nx.Graph":
         """A frozen networkx graph of the committed state; see `hestore.graphs.to_networkx`.
 
@@ -1030,7 +1035,7 @@ class Mesh:
         from hestore import graphs
 
         ids = None if vertices is None else self._vertex_ids(vertices, "vertices")
-        return graphs.to_networkx(self, kind, attrs, ids)
+        return graphs.to_networkx(self, kind, attrs, ids, progress)
 
     def _vertex_ids(self, vertices: object, what: str) -> list[int]:
         """The ids of an iterable of `Vertex` handles of this mesh."""

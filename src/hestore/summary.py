@@ -470,12 +470,14 @@ def boundary_loops(mesh: "Mesh") -> list[list[HalfEdge]]:
     return [[HalfEdge(mesh, i) for i in ids[a:b]] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def components(mesh: "Mesh") -> list[set[Vertex]]:
+def components(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> list[set[Vertex]]:
     """The connected components of the vertex–edge graph: `Mesh.components`.
 
     Parameters
     ----------
     mesh : hestore.Mesh
+    progress : callable, optional
+        ``progress(stage, done, total)`` at the start and end of ``"read"`` and ``"label"``.
 
     Returns
     -------
@@ -499,10 +501,16 @@ def components(mesh: "Mesh") -> list[set[Vertex]]:
     [[0, 3], [1], [2]]
     >>> store.close()
     """
+    report = progress or (lambda stage, done, total: None)
+    report("read", 0, 1)
     t = _read(mesh, sides=False, links=True)
+    report("read", 1, 1)
+    report("label", 0, 1)
     rep = np.flatnonzero(np.arange(len(t.he_id)) < t.twin)
     roots = component_roots(len(t.v_id), t.origin[rep], t.origin[t.twin[rep]])
     order, bounds = groups(roots)
     ids = t.v_id[order].tolist()
     bounds = bounds.tolist()
-    return [{Vertex(mesh, i) for i in ids[a:b]} for a, b in zip(bounds[:-1], bounds[1:])]
+    found = [{Vertex(mesh, i) for i in ids[a:b]} for a, b in zip(bounds[:-1], bounds[1:])]
+    report("label", 1, 1)
+    return found
