@@ -47,10 +47,12 @@ def navigation(store: hestore.Store, path: pathlib.Path) -> None:
     xyz += [(4, 0, 0), (3, 1.7, 0)]
     polygons = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 6], [0, 6, 1], [1, 7, 8, 2]]
     mesh = store.import_arrays("hexagon", xyz, polygons).mesh
-    fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=80)
-    mesh.plot(ax, labels=True)
+    fig, ax = plt.subplots(figsize=(7.5, 4.6), dpi=100)
+    mesh.plot(ax, labels="all")
     ax.get_legend().remove()  # one boundary loop: the legend would only cover a corner
-    ax.set_title("vertex ids: six triangles around vertex 0, a quad beside them", fontsize=10)
+    low, high = ax.get_ylim()  # room for the boundary's arrows, outside the mesh
+    ax.set_ylim(low - 0.06 * (high - low), high + 0.06 * (high - low))
+    ax.set_title("vertex ids, and each half-edge's id on its arrow, on its polygon's side", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

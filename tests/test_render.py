@@ -238,6 +238,25 @@ def test_labels(store):
     assert not [t for t in mesh.plot(axes()).texts if t.get_gid() == "labels"]
 
 
+@pytest.mark.parametrize("which", ["halfedges", "all"])
+def test_halfedge_labels(store, which):
+    mesh = store.import_arrays("sq", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [[0, 1, 2], [0, 2, 3]]).mesh
+    ax = mesh.plot(axes(), labels=which, view="top")
+    texts = [t for t in ax.texts if t.get_gid() == "halfedge_labels"]
+    assert sorted(int(t.get_text()) for t in texts) == [h.id for h in mesh.halfedges()]
+    assert bool([t for t in ax.texts if t.get_gid() == "labels"]) == (which == "all")
+    [arrows] = [c for c in ax.collections if c.get_gid() == "halfedge_labels"]
+    assert len(arrows.U) == len(texts)
+    for t in texts:  # each id sits on its half-edge's left, where its polygon is (or outside, if free)
+        h = mesh.halfedge(int(t.get_text()))
+        (ax_, ay), (bx, by) = h.origin.position[:2], h.target.position[:2]
+        x, y = t.get_position()
+        side = (bx - ax_) * (y - ay) - (by - ay) * (x - ax_)
+        assert side > 0, (h.id, side)
+    with pytest.raises(hestore.InvalidInputError, match="labels"):
+        mesh.plot(axes(), labels="faces")
+
+
 def test_raster_above_max_polygons(store):
     mesh = pyramid(store)
     ax = mesh.plot(axes(), max_polygons=2)

@@ -8,7 +8,7 @@ unreachable or malformed database URL, an unknown schema revision, a file
 that cannot be read or written) into one line on stderr and exit status 2.
 
 Commands: ``demo``, ``import FILE [--orient] [--replace]``, ``export NAME FILE [--revision R]``,
-``render NAME FILE.png|.svg [--revision R] [--view V] [--labels] [--check|--no-check] [--size WxH]``
+``render NAME FILE.png|.svg [--revision R] [--view V] [--labels [WHAT]] [--check|--no-check] [--size WxH]``
 (`hestore.Mesh.render`), ``list``,
 ``delete NAME``, ``rename NAME NEW``, ``copy NAME NEW [--revision R]``, ``log NAME [--limit N]``,
 ``diff NAME A B``, ``undo NAME``, ``redo NAME``, ``revert NAME R``,
@@ -764,7 +764,15 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"where to look from: {', '.join(VIEWS)}, or AZIMUTH,ELEVATION in degrees (default: straight "
         "on for a planar mesh, else iso)",
     )
-    rnd.add_argument("--labels", action="store_true", help=f"write vertex ids (up to {LABEL_VERTICES:,} vertices)")
+    rnd.add_argument(
+        "--labels",
+        nargs="?",
+        const="vertices",
+        default=False,
+        choices=("vertices", "halfedges", "all"),
+        help=f"write ids: of vertices (the default with --labels), of half-edges (an arrow each, on its "
+        f"polygon's side), or all (up to {LABEL_VERTICES:,} of each)",
+    )
     rnd.add_argument(
         "--check",
         action=argparse.BooleanOptionalAction,

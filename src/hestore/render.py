@@ -101,6 +101,7 @@ LAYERS = (
     "pinched_vertices",
     "violations",
     "labels",
+    "halfedge_labels",
     "notes",
 )
 
@@ -255,7 +256,7 @@ def plot(
     ax: Any = None,
     *,
     view: object = None,
-    labels: bool = False,
+    labels: bool | str = False,
     check: bool | None = None,
     max_polygons: int = MAX_POLYGONS,
     progress: Progress | None = None,
@@ -273,8 +274,11 @@ def plot(
         ``"left"``, ``"right"`` (see `VIEWS`), or ``(azimuth, elevation)`` in
         degrees as in matplotlib's 3-D Axes. Default: straight on for a
         planar mesh, else ``"iso"``.
-    labels : bool
-        Write each vertex's id beside it (up to `LABEL_VERTICES` vertices).
+    labels : bool or {"vertices", "halfedges", "all"}
+        Write ids: each vertex's beside it (True or ``"vertices"``), each
+        half-edge's on an arrow from its origin to its target along its left
+        side, where its polygon is (``"halfedges"``), or both (``"all"``); up
+        to `LABEL_VERTICES` of each.
     check : bool or None
         Run `Mesh.check` and draw what it names in red; None (the default)
         checks meshes of up to `CHECK_POLYGONS` polygons and notes the skip
@@ -322,6 +326,8 @@ def plot(
         raise InvalidInputError(f"ax must be a matplotlib Axes, not {type(ax).__name__}")
     if isinstance(max_polygons, bool) or not isinstance(max_polygons, int) or max_polygons < 0:
         raise InvalidInputError(f"max_polygons must be an int of at least 0, not {max_polygons!r}")
+    if labels not in _LABELS:
+        raise InvalidInputError(f"labels must be True, False, 'vertices', 'halfedges' or 'all', not {labels!r}")
     toward = None if view is None else _toward(view)
     report = progress or (lambda stage, done, total: None)
     report("read", 0, 1)
@@ -368,8 +374,10 @@ def plot(
         notes.append("the mesh is empty")
     _polygons(mpl, ax, scene, screen, placed, light, planar is not None, max_polygons, pixels_per_unit, notes, report)
     handles = _highlights(mpl, ax, mesh, scene, screen, placed, violations)
-    if labels:
+    if _LABELS[labels] & {"vertices"}:
         _labels(ax, scene, screen, placed, notes)
+    if _LABELS[labels] & {"halfedges"}:
+        _halfedge_labels(ax, scene, screen, placed, notes)
     ax.set_aspect("equal")
     ax.set_axis_off()
     if handles:
@@ -600,6 +608,35 @@ def _violations(
     if len(vertices):
         ax.scatter(screen[vertices, 0], screen[vertices, 1], s=80, marker="X", color=[_VIOLATION],
                    gid="violations", zorder=6)
+
+
+#: What each value of ``labels`` writes.
+_LABELS = {False: frozenset(), True: frozenset({"vertices"}), "vertices": frozenset({"vertices"}),
+           "halfedges": frozenset({"halfedges"}), "all": frozenset({"vertices", "halfedges"})}
+
+
+def _halfedge_labels(ax, scene: _Scene, screen, placed, notes: list[str]) -> None:
+    """An arrow per half-edge, origin to target, beside its edge on its left (its polygon's side), with its id."""
+    rows = np.flatnonzero(placed[scene.origin] & placed[scene.target] & (scene.origin != scene.target))
+    if len(rows) > LABEL_VERTICES:
+        notes.append(f"half-edge labels left out: {len(rows):,} half-edges (at most {LABEL_VERTICES:,})")
+        return
+    a, b = screen[scene.origin[rows], :2], screen[scene.target[rows], :2]
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])[:, None]
+    keep = length[:, 0] > 0
+    rows, a, d, length = rows[keep], a[keep], d[keep], length[keep]
+    left = np.column_stack([-d[:, 1], d[:, 0]]) / length
+    # A fixed share of each edge: the twins' arrows sit on either side, apart, and clear of the corners.
+    shift = left * (0.07 * length)
+    start, end = a + 0.2 * d + shift, a + 0.8 * d + shift
+    arrows = ax.quiver(start[:, 0], start[:, 1], (end - start)[:, 0], (end - start)[:, 1], angles="xy",
+                       scale_units="xy", scale=1, width=0.003, headwidth=4, headlength=5, color="0.25", zorder=7)
+    arrows.set_gid("halfedge_labels")
+    middle = a + 0.5 * d + 2.2 * shift
+    for r, m in zip(rows.tolist(), middle):
+        ax.text(m[0], m[1], str(int(scene.he_id[r])), fontsize="xx-small", color="0.25", ha="center",
+                va="center", gid="halfedge_labels", zorder=7)
 
 
 def _labels(ax, scene: _Scene, screen, placed, notes: list[str]) -> None:
