@@ -256,12 +256,16 @@ def test_random_wireframes_agree_with_networkx(store, wire, data):
         vs = [mesh.add_vertex(p) for p in positions]
         for a, b in edges:
             mesh.add_edge(vs[a], vs[b])
+    check_drawn(mesh, [v.id for v in vs], data, k_max=4)
+
+
+def check_drawn(mesh, ids, data, k_max):
+    """Both kinds of path between two drawn vertices, a drawn k-ring and a drawn induced view agree with networkx."""
     G = reference(mesh)
-    ids = [v.id for v in vs]
     a, b = data.draw(st.sampled_from(ids)), data.draw(st.sampled_from(ids))
     check_path(mesh, G, a, b, None)
     check_path(mesh, G, a, b, "length")
-    check_ring(mesh, G, a, data.draw(st.integers(0, 4)))
+    check_ring(mesh, G, a, data.draw(st.integers(0, k_max)))
     S = data.draw(st.lists(st.sampled_from(ids), unique=True))
     check_induced(mesh, data.draw(st.sampled_from(VERTEX_KINDS)), S)
 
@@ -275,14 +279,7 @@ def test_random_grids_agree_with_networkx(store, n, m, cut, data):
     with store.transaction():
         for i in sorted(set(c % len(edges) for c in cut)):
             mesh.remove_edge(edges[i])  # holes, wire edges, maybe several components
-    G = reference(mesh)
-    ids = all_vertex_ids(mesh)
-    a, b = data.draw(st.sampled_from(ids)), data.draw(st.sampled_from(ids))
-    check_path(mesh, G, a, b, None)
-    check_path(mesh, G, a, b, "length")
-    check_ring(mesh, G, b, data.draw(st.integers(0, 3)))
-    S = data.draw(st.lists(st.sampled_from(ids), unique=True))
-    check_induced(mesh, data.draw(st.sampled_from(VERTEX_KINDS)), S)
+    check_drawn(mesh, all_vertex_ids(mesh), data, k_max=3)
 
 
 # -- inside a block, and views of the past ---------------------------------------------------
