@@ -26,7 +26,7 @@ from sqlalchemy.schema import CreateTable
 from hestore import schema
 from hestore.columns import write_columns
 from hestore.journal import created_changes, to_history
-from hestore.statements import MAX_IN, StatementCache, in_list_bucket, indexed_by, padded
+from hestore.statements import MAX_IN, StatementCache, in_chunks, in_keys, in_list_bucket, indexed_by, padded
 from hestore.unitofwork import (
     HE_COLUMNS,
     K_EDGE,
@@ -68,7 +68,7 @@ def _load_statement(sizes: tuple) -> sa.CompoundSelect:
 
     selects = []
     for name, size in sizes:
-        ids = [sa.bindparam(f"{name}{i}") for i in range(size)]
+        ids = in_keys(size, name)
         if name == "vertices":
             selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
         elif name == "halfedges":
@@ -302,29 +302,26 @@ class Persistence:
         if any(len(ids) > MAX_IN for _, ids in parts):
             rows: list[tuple] = []
             for name, ids in parts:
-                for start in range(0, len(ids), MAX_IN):
-                    rows.extend(self.load(mesh_id, {name: ids[start : start + MAX_IN]}))
+                for chunk, _ in in_chunks(ids):
+                    rows.extend(self.load(mesh_id, {name: chunk}))
             return rows
         sizes = tuple((name, in_list_bucket(len(ids))) for name, ids in parts)
         stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
         values: dict[str, Any] = {"m": mesh_id}
         for (name, ids), (_, size) in zip(parts, sizes):
-            last = ids[-1]
-            for k in range(size):
-                values[f"{name}{k}"] = ids[k] if k < len(ids) else last
+            values.update(padded(ids, size, name))
         return stmt.rows(self.cursor(), values)
 
     def positions(self, mesh_id: int, ids: list[int]) -> dict[int, tuple | None]:
         """Stored positions of these vertices: ``{id: (x, y, z) or None}``."""
         v = schema.vertices
         out: dict[int, tuple | None] = {}
-        for start in range(0, len(ids), MAX_IN):
-            chunk = ids[start : start + MAX_IN]
-            size = in_list_bucket(len(chunk))
+        for chunk, size in in_chunks(ids):
 
             def build(size=size):
-                keys = [sa.bindparam(f"i{k}") for k in range(size)]
-                return sa.select(v.c.id, v.c.x, v.c.y, v.c.z).where(v.c.mesh_id == sa.bindparam("m"), v.c.id.in_(keys))
+                return sa.select(v.c.id, v.c.x, v.c.y, v.c.z).where(
+                    v.c.mesh_id == sa.bindparam("m"), v.c.id.in_(in_keys(size))
+                )
 
             values = {"m": mesh_id, **padded(chunk, size)}
             for i, x, y, z in self.st.get(("positions", size), build).rows(self.cursor(), values):
@@ -344,15 +341,14 @@ class Persistence:
             by_table.setdefault(table_of(prop.dtype), []).append(prop.id)
         for table, pids in by_table.items():
             cols = _value_columns(table)
-            for start in range(0, len(ids), MAX_IN):
-                chunk = ids[start : start + MAX_IN]
-                size, psize = in_list_bucket(len(chunk)), in_list_bucket(len(pids))
+            psize = in_list_bucket(len(pids))
+            for chunk, size in in_chunks(ids):
 
                 def build(table=table, size=size, psize=psize, cols=cols):
-                    keys = [sa.bindparam(f"i{k}") for k in range(size)]
-                    qs = [sa.bindparam(f"q{k}") for k in range(psize)]
                     return sa.select(*(table.c[c] for c in cols)).where(
-                        table.c.mesh_id == sa.bindparam("m"), table.c.property.in_(qs), table.c.id.in_(keys)
+                        table.c.mesh_id == sa.bindparam("m"),
+                        table.c.property.in_(in_keys(psize, "q")),
+                        table.c.id.in_(in_keys(size)),
                     )
 
                 values = {"m": mesh_id}
@@ -539,14 +535,10 @@ class Persistence:
         before the transaction (it is net).
         """
         if key == ("id",):
-            ids = columns[0]
-            for start in range(0, len(ids), MAX_IN):
-                chunk = ids[start : start + MAX_IN]
-                size = in_list_bucket(len(chunk))
+            for chunk, size in in_chunks(columns[0]):
 
                 def build(size=size):
-                    ids = [sa.bindparam(f"i{k}") for k in range(size)]
-                    return to_history(table, what, "sqlite", table.c.id.in_(ids))
+                    return to_history(table, what, "sqlite", table.c.id.in_(in_keys(size)))
 
                 values = {"m": mesh_id, "r": self._rev, **padded(chunk, size)}
                 self.st.get(("journal", what, table.name, size), build).run(self.cursor(), values)

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import itertools
 import operator
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-__all__ = ["Prepared", "StatementCache", "in_list_bucket", "indexed_by", "padded"]
+__all__ = ["Prepared", "StatementCache", "in_list_bucket", "in_chunks", "in_keys", "indexed_by", "padded"]
 
 #: Longest ``IN`` list compiled; longer lists are sent in chunks of this size.
 MAX_IN = 512
@@ -107,12 +107,12 @@ class Prepared:
 
     def rows(self, cursor: Any, values: dict[str, Any]) -> list[tuple]:
         """Execute with ``values`` and return all rows."""
-        cursor.execute(self.sql, self.params(values), **self._options)
+        self.execute(cursor, self.params(values))
         return cursor.fetchall()
 
     def run(self, cursor: Any, values: dict[str, Any]) -> None:
         """Execute with ``values``, discarding any result."""
-        cursor.execute(self.sql, self.params(values), **self._options)
+        self.execute(cursor, self.params(values))
 
     def run_columns(self, cursor: Any, fixed: dict[str, Any], columns: dict[str, Sequence]) -> None:
         """Execute once per row of equal-length ``columns``, in one driver call; ``fixed`` values repeat.
@@ -139,6 +139,28 @@ def in_list_bucket(n: int) -> int:
     while size < n and size < MAX_IN:
         size *= 2
     return size
+
+
+def in_chunks(ids: Sequence, least: int = 1) -> Iterator[tuple[Sequence, int]]:
+    """``(chunk, size)`` for each run of at most `MAX_IN` of ``ids``: the chunk and its compiled list length.
+
+    ``size`` is `in_list_bucket`'s, and at least ``least``.
+
+    >>> [(list(c), n) for c, n in in_chunks(list(range(5)))]
+    [([0, 1, 2, 3, 4], 8)]
+    """
+    for start in range(0, len(ids), MAX_IN):
+        chunk = ids[start : start + MAX_IN]
+        yield chunk, max(least, in_list_bucket(len(chunk)))
+
+
+def in_keys(size: int, prefix: str = "i") -> list:
+    """The bind parameters ``{prefix}0 … {prefix}{size-1}`` of an ``IN`` list `padded` fills.
+
+    >>> [k.key for k in in_keys(3)]
+    ['i0', 'i1', 'i2']
+    """
+    return [sa.bindparam(f"{prefix}{k}") for k in range(size)]
 
 
 def padded(values: Sequence, size: int, prefix: str = "i") -> dict[str, Any]:

@@ -46,7 +46,7 @@ from hestore.errors import (
 )
 from hestore.handles import Vertex, wrap
 from hestore.navigation import exists, missing
-from hestore.statements import MAX_IN, in_list_bucket, indexed_by, padded
+from hestore.statements import in_chunks, in_keys, indexed_by, padded
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -93,15 +93,9 @@ def _in_rows(mesh: "Mesh", name: str, build: Callable[[int], object], ids: Seque
     One statement per chunk of `MAX_IN` ids, compiled once per bucket size (`_LEAST_IN` at least).
     """
     rows: list[tuple] = []
-    for start in range(0, len(ids), MAX_IN):
-        chunk = ids[start : start + MAX_IN]
-        size = max(_LEAST_IN, in_list_bucket(len(chunk)))
+    for chunk, size in in_chunks(ids, _LEAST_IN):
         rows.extend(mesh.session.fetch(mesh.ref, (name, size), lambda size=size: build(size), padded(chunk, size)))
     return rows
-
-
-def _keys(size: int) -> list:
-    return [sa.bindparam(f"i{k}") for k in range(size)]
 
 
 def _twin():
@@ -115,7 +109,7 @@ def _build_star(size: int):
     stmt = (
         sa.select(_H.c.origin, t.c.origin)
         .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(_keys(size)))
+        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
     )
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
@@ -127,7 +121,7 @@ def _build_placed_star(size: int):
     stmt = (
         sa.select(_H.c.origin, t.c.origin, _H.c.edge, w.c.x, w.c.y, w.c.z)
         .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(_keys(size)))
+        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
     )
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
@@ -150,7 +144,7 @@ def _stars(mesh: "Mesh", ids: Sequence[int]) -> list[tuple[int, int]]:
 
 def _build_vertices(size: int):
     return sa.select(_V.c.id, _V.c.x, _V.c.y, _V.c.z).where(
-        _V.c.mesh_id == sa.bindparam("m"), _V.c.id.in_(_keys(size))
+        _V.c.mesh_id == sa.bindparam("m"), _V.c.id.in_(in_keys(size))
     )
 
 
@@ -176,7 +170,7 @@ def _build_among(size: int):
     stmt = (
         sa.select(_H.c.id, _H.c.origin, _H.c.twin, _H.c.edge, _H.c.polygon, t.c.origin, e.c.halfedge)
         .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(_keys(size)))
+        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
     )
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
