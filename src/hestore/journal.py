@@ -110,6 +110,11 @@ def _versioned(source: Any) -> sa.Table | None:
     return None
 
 
+def _column(to: Any, name: str) -> Any:
+    """Column ``name`` of a replacement: a from clause's, or a mapping's (merged columns)."""
+    return to.c[name] if hasattr(to, "c") else to[name]
+
+
 def _moved(expr: Any, columns: dict) -> Any:
     """``expr`` with the columns of each ``{from: to}`` read from ``to`` (a from clause or a column mapping)."""
 
@@ -118,7 +123,7 @@ def _moved(expr: Any, columns: dict) -> Any:
         if isinstance(element, sa.ColumnClause) and owner is not None:
             to = columns.get(owner)
             if to is not None:
-                return to.c[element.name] if hasattr(to, "c") else to[element.name]
+                return _column(to, element.name)
         return None
 
     return replacement_traverse(expr, {}, replace)
@@ -241,8 +246,7 @@ def as_of(statement, revision: Any, mesh: Any = None):
             return to if hasattr(to, "c") else None
         owner = getattr(element, "table", None)
         if isinstance(element, sa.ColumnClause) and owner is not None and owner is not keep and owner in columns:
-            to = columns[owner]
-            return to.c[element.name] if hasattr(to, "c") else to[element.name]
+            return _column(columns[owner], element.name)
         return None
 
     def side(f):
@@ -374,7 +378,7 @@ def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None, new=N
 
 
 #: The id counters of `COUNTED`, as ``changed_rows`` binds them (``:s_<name>`` at the start, ``:e_<name>`` after).
-COUNTERS = ("next_vertex", "next_edge", "next_polygon", "next_property")
+COUNTERS = tuple(dict.fromkeys(name for name, _step in COUNTED.values()))
 
 
 def changed_rows(table: sa.Table, whole: bool) -> sa.Select:
