@@ -29,12 +29,16 @@ Hierarchy::
     └── WrongThreadError                     a store used from a thread that did not open it
 
 `Violation`, the record `Mesh.check` returns and `InvariantViolationError`
-carries, lives here too, so that errors depend on nothing else.
+carries, lives here too, so that errors depend on nothing else; so does
+`require`, the import of an optional library that raises
+`MissingDependencyError` when it is missing.
 """
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 __all__ = [
@@ -62,6 +66,7 @@ __all__ = [
     "SchemaVersionError",
     "WrongThreadError",
     "Violation",
+    "require",
 ]
 
 
@@ -106,6 +111,30 @@ class RevisionNotFoundError(HestoreError, KeyError):
 
 class MissingDependencyError(HestoreError, ImportError):
     """An optional library a call needs (trimesh, meshio) is not installed; the message says what to install."""
+
+
+def require(module: str, extra: str | None = None) -> ModuleType:
+    """Import an optional dependency, or raise `MissingDependencyError` saying how to install it.
+
+    ``extra`` names hestore's extra that brings it (default: the module's own name).
+
+    Examples
+    --------
+    >>> require("json").__name__
+    'json'
+    >>> try:
+    ...     require("no_such_module", "plot")
+    ... except MissingDependencyError as exc:
+    ...     print(exc)
+    no_such_module is not installed: pip install "hestore[plot]" (or pip install no_such_module)
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        top = module.partition(".")[0]
+        raise MissingDependencyError(
+            f'{top} is not installed: pip install "hestore[{extra or top}]" (or pip install {top})'
+        ) from exc
 
 
 class InvalidInputError(HestoreError, ValueError):

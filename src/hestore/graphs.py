@@ -55,6 +55,7 @@ from hestore import schema, traversal
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError
+from hestore.progress import silent
 from hestore.values import Property
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -298,7 +299,7 @@ def to_networkx(
         used = len(requests)
         if plan is not None and plan.length and kind == "dual":
             requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
-        report = progress or (lambda stage, done, total: None)
+        report = progress or silent
         report("read", 0, 1)
         columns = snap.columns(requests)
         extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES

@@ -25,7 +25,6 @@ order from their ``halfedge``) and comes back through
 from __future__ import annotations
 
 import contextlib
-import importlib
 import io
 import os
 import warnings
@@ -34,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hestore import bulk, navigation
-from hestore.errors import InvalidInputError, MissingDependencyError
+from hestore.errors import InvalidInputError, require
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -55,15 +54,6 @@ MESHIO_EXTENSIONS = (".stl", ".vtk", ".vtu")
 
 #: meshio's block names for polygons of a fixed arity (larger ones are "polygon").
 _BLOCKS = {3: "triangle", 4: "quad"}
-
-
-def _require(name: str) -> Any:
-    try:
-        return importlib.import_module(name)
-    except ImportError as exc:
-        raise MissingDependencyError(
-            f"{name} is not installed: pip install \"hestore[{name}]\" (or pip install {name})"
-        ) from exc
 
 
 def _polygons(mesh: "Mesh") -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
@@ -108,7 +98,7 @@ def to_trimesh(mesh: "Mesh") -> Any:
     >>> tm.faces.tolist(), tm.metadata["polygon"].tolist()
     ([[0, 1, 2], [0, 2, 3]], [0, 0])
     """
-    trimesh = _require("trimesh")
+    trimesh = require("trimesh")
     positions, rows, ids, vertex_ids = _polygons(mesh)
     faces, owner = _fans(rows, ids)
     tm = trimesh.Trimesh(vertices=positions, faces=faces, process=False)
@@ -159,7 +149,7 @@ def to_meshio(mesh: "Mesh") -> Any:
     >>> [(c.type, c.data.tolist()) for c in m.cells]
     [('quad', [[0, 1, 2, 3]]), ('triangle', [[1, 4, 2]])]
     """
-    meshio = _require("meshio")
+    meshio = require("meshio")
     positions, rows, _ids, _vertex_ids = _polygons(mesh)
     return meshio.Mesh(positions, [(kind, cells) for kind, cells in _cells([r for r in rows if len(r) >= 3])])
 
@@ -198,7 +188,7 @@ def import_meshio(store: "Store", name: str, m: Any, **options) -> bulk.ImportRe
 
 def read_meshio_file(store: "Store", path, name: str | None = None, **options) -> bulk.ImportReport:
     """Import an STL, VTK or VTU file through meshio (`hestore.Store.import_file` for those extensions)."""
-    meshio = _require("meshio")
+    meshio = require("meshio")
     path = os.fspath(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
@@ -221,7 +211,7 @@ def read_meshio_file(store: "Store", path, name: str | None = None, **options) -
 
 def write_meshio_file(mesh: "Mesh", path) -> None:
     """Write an STL (triangles: polygons cut into fans), VTK or VTU file through meshio."""
-    meshio = _require("meshio")
+    meshio = require("meshio")
     path = os.fspath(path)
     if path.lower().endswith(".stl"):
         positions, rows, ids, _vertex_ids = _polygons(mesh)

@@ -49,7 +49,6 @@ Examples
 
 from __future__ import annotations
 
-import importlib
 import math
 import os
 import tempfile
@@ -61,7 +60,8 @@ import numpy as np
 from hestore import schema, summary, validation
 from hestore.arrays import Index, cycles, dense, polygon_halfedges, positions as position_array
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, MissingDependencyError, Violation
+from hestore.errors import InvalidInputError, Violation, require
+from hestore.progress import silent
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -123,15 +123,10 @@ _RASTER_SIDE = 4096
 
 
 def _require() -> Any:
-    """matplotlib, or `MissingDependencyError` saying how to install it."""
-    try:
-        mpl = importlib.import_module("matplotlib")
-        importlib.import_module("matplotlib.collections")
-        importlib.import_module("matplotlib.axes")
-    except ImportError as exc:
-        raise MissingDependencyError(
-            'matplotlib is not installed: pip install "hestore[plot]" (or pip install matplotlib)'
-        ) from exc
+    """matplotlib (with the parts drawing uses), or `MissingDependencyError` saying how to install it."""
+    mpl = require("matplotlib", "plot")
+    for part in ("matplotlib.collections", "matplotlib.axes"):
+        require(part, "plot")
     return mpl
 
 
@@ -329,7 +324,7 @@ def plot(
     if labels not in _LABELS:
         raise InvalidInputError(f"labels must be True, False, 'vertices', 'halfedges' or 'all', not {labels!r}")
     toward = None if view is None else _toward(view)
-    report = progress or (lambda stage, done, total: None)
+    report = progress or silent
     report("read", 0, 1)
     scene = _read(mesh)
     report("read", 1, 1)
@@ -753,7 +748,7 @@ def render(
         counts = mesh.counts()
         figure.suptitle(f"{mesh.name} (revision {mesh.revision}): {counts.vertices:,} vertices, "
                         f"{counts.edges:,} edges, {counts.polygons:,} polygons", fontsize="small")
-    report = progress or (lambda stage, done, total: None)
+    report = progress or silent
     report("write", 0, 1)
     fd, temporary = -1, None
     try:

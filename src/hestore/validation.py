@@ -79,6 +79,7 @@ from hestore import schema
 from hestore.arrays import Index, TopologyArrays, cycles, first_per_group
 from hestore.columns import read_columns
 from hestore.errors import InvalidInputError, Violation
+from hestore.progress import silent
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -875,7 +876,7 @@ def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     []
     >>> store.close()
     """
-    report = progress or (lambda stage, done, total: None)
+    report = progress or silent
     with mesh.session.snapshot(mesh.ref) as snap:
         report("read", 0, 1)
         arrays = _arrays(snap.columns(_REQUESTS))
