@@ -26,7 +26,7 @@ ELEMENT_TABLES = TABLES - {"meshes"}
 #: The tables each revision adds.
 ADDED = {"0001": {"meshes", "vertices", "halfedges", "edges", "polygons"}, "0002": set(),
          "0003": {"properties", "property_reals", "property_integers", "property_texts"},
-         "0004": {"revisions", *HISTORY}}
+         "0004": {"revisions", *HISTORY}, "0005": set()}
 INDEXES = {"ix_halfedges_origin", "ix_halfedges_polygon"}
 
 
@@ -159,7 +159,10 @@ def test_current_revision_rejects_a_branched_version_table(engine):
 
 
 def _store_triangle_by_hand(conn: sa.Connection) -> None:
-    """A one-triangle mesh written with the SQL of revisions 0001 and 0002 (no hestore involved)."""
+    """A one-triangle mesh written with the SQL of the database's revision (no hestore involved).
+
+    From 0004 on, the rows say they were written by revision 1, which is kept, as 0004 makes them.
+    """
     conn.execute(sa.text(
         "INSERT INTO meshes (name, allow_loops, allow_multi_edges, revision, next_vertex, next_edge, next_polygon) "
         "VALUES ('old', true, true, 1, 3, 3, 1)"
@@ -168,17 +171,27 @@ def _store_triangle_by_hand(conn: sa.Connection) -> None:
     # Half-edges 0, 2, 4 run 0→1→2→0 around polygon 0; 1, 3, 5 are their free twins,
     # and each vertex's half-edge is its free outgoing one.
     for v, (x, h) in enumerate([(0.0, 5), (1.0, 1), (0.5, 3)]):
-        conn.execute(sa.text(f"INSERT INTO vertices VALUES ({mesh_id}, {v}, {h}, {x}, 0, 0)"))
+        conn.execute(sa.text(
+            f"INSERT INTO vertices (mesh_id, id, halfedge, x, y, z) VALUES ({mesh_id}, {v}, {h}, {x}, 0, 0)"
+        ))
     rows = [(0, 0, 2, 4, 1, 0, 0), (2, 1, 4, 0, 3, 1, 0), (4, 2, 0, 2, 5, 2, 0),
             (1, 1, 5, 3, 0, 0, None), (3, 2, 1, 5, 2, 1, None), (5, 0, 3, 1, 4, 2, None)]
     for h, origin, nxt, prev, twin, edge, polygon in rows:
         poly = "NULL" if polygon is None else polygon
         conn.execute(sa.text(
-            f"INSERT INTO halfedges VALUES ({mesh_id}, {h}, {origin}, {nxt}, {prev}, {twin}, {edge}, {poly})"
+            "INSERT INTO halfedges (mesh_id, id, origin, next, prev, twin, edge, polygon) "
+            f"VALUES ({mesh_id}, {h}, {origin}, {nxt}, {prev}, {twin}, {edge}, {poly})"
         ))
     for e in range(3):
-        conn.execute(sa.text(f"INSERT INTO edges VALUES ({mesh_id}, {e}, {2 * e})"))
-    conn.execute(sa.text(f"INSERT INTO polygons VALUES ({mesh_id}, 0, 0)"))
+        conn.execute(sa.text(f"INSERT INTO edges (mesh_id, id, halfedge) VALUES ({mesh_id}, {e}, {2 * e})"))
+    conn.execute(sa.text(f"INSERT INTO polygons (mesh_id, id, halfedge) VALUES ({mesh_id}, 0, 0)"))
+    if "revisions" in sa.inspect(conn).get_table_names():
+        for table in ("vertices", "halfedges", "edges", "polygons"):
+            conn.execute(sa.text(f"UPDATE {table} SET rev = 1"))
+        conn.execute(sa.text("UPDATE meshes SET kept_from = 1"))
+        conn.execute(sa.text(
+            f"INSERT INTO revisions (mesh_id, number, committed_at) VALUES ({mesh_id}, 1, CURRENT_TIMESTAMP)"
+        ))
     conn.commit()
 
 
@@ -308,3 +321,45 @@ def test_the_first_kept_revision_of_an_upgraded_mesh_reports_its_content_whateve
         [first] = store.mesh("old").history()
         assert first.number == 5
         assert first.changes == TRIANGLE_CREATED  # as for an upgraded mesh at revision 1
+
+
+def _history_keys(conn: sa.Connection) -> dict:
+    """Each history table's primary key columns, in order, and its other indexes."""
+    inspect = sa.inspect(conn)
+    return {t: (inspect.get_pk_constraint(t)["constrained_columns"], [ix["name"] for ix in inspect.get_indexes(t)])
+            for t in sorted(HISTORY)}
+
+
+def test_0005_keys_history_by_revision_and_keeps_it_both_ways(db_url, engine):
+    with hestore.open(db_url) as store:
+        mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]]).mesh
+        mesh.add_property("vertex", "w", "float64", default=0.0)
+        mesh.set_position(mesh.vertex(3), (2.0, 2.0, 0.0))
+        mesh.vertex(0)["w"] = 1.5
+        mesh.flip_edge(mesh.find_halfedge(mesh.vertex(1), mesh.vertex(2)).edge)
+        mesh.remove_polygon(mesh.polygon(1))
+        revisions = [r.number for r in mesh.history()]
+
+        def states():
+            return {r: (mesh.at(r).to_arrays().positions.tolist(), mesh.at(r).to_arrays().polygons.tolist(),
+                        mesh.at(r).property_array("vertex", "w")[1].tolist() if r > 2 else None)
+                    for r in revisions}
+
+        before = states()
+    with engine.connect() as conn:
+        assert _history_keys(conn)["vertices_history"] == (["mesh_id", "rev_to", "id"], [])
+        assert _history_keys(conn)["property_reals_history"][0] == ["mesh_id", "rev_to", "property", "id", "part"]
+        migrate.downgrade(conn, "0004")
+        assert _history_keys(conn)["vertices_history"] == (
+            ["mesh_id", "id", "rev_to"], ["ix_vertices_history_rev_to"])
+        migrate.upgrade(conn)
+        assert _differences(conn) == []
+        assert all(pk[:2] == ["mesh_id", "rev_to"] and not ix for pk, ix in _history_keys(conn).values())
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("t")
+        assert states() == before
+        assert mesh.check() == []
+        mesh.undo()
+        mesh.undo()
+        now = (mesh.to_arrays().positions.tolist(), mesh.to_arrays().polygons.tolist())
+        assert now == tuple(before[revisions[2]][:2])

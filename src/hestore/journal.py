@@ -331,8 +331,8 @@ def request_as_of(request: tuple, revision: int) -> tuple:
 def touched(table: sa.Table, after: Any, until: Any) -> sa.Select:
     """The keys of ``table`` whose row changed in a revision in ``(after, until]``: ``SELECT DISTINCT key``.
 
-    Read from the history twin's ``(mesh_id, rev_to)`` index: its size is
-    the number of changes, whatever the size of the mesh.
+    One range of the history twin, which is keyed ``(mesh_id, rev_to, key)``:
+    its size is the number of changes, whatever the size of the mesh.
     """
     history = schema.HISTORY[table.name]
     key = [history.c[c.name] for c in table.primary_key if c.name != "mesh_id"]
@@ -404,7 +404,7 @@ def restore_statements(table: sa.Table, target: int, revision: int, since: dict)
     versions valid at ``target`` are written back with ``rev = revision``;
     keys that did not exist then stay deleted, and keys that come back get
     their "did not exist" record for this revision. Set-based: one statement
-    each, over the history twin's index; nothing is read into Python.
+    each, over ranges of the history twin's key; nothing is read into Python.
     ``since`` holds the id counters when revision ``target + 1`` began:
     rows with ids from there on were created after ``target``.
     """

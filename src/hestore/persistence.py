@@ -174,6 +174,12 @@ def _pg_to_history(table: sa.Table, what: str, key: tuple) -> str:
 
 _VALUE_TABLE_NAMES = frozenset(t.name for t in schema.VALUE_TABLES)
 
+
+@functools.cache
+def _in_names(size: int) -> tuple:
+    """The revision, the mesh and an `in_keys` list of ``size``: the parameters of a journal statement, in order."""
+    return ("r", "m", *(k.key for k in in_keys(size)))
+
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.
 _STAGE_ROWS = 20_000
 
@@ -183,6 +189,8 @@ _CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
 _VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
 _HE_UPDATE = ("id", "origin", "next", "prev", "polygon")
+#: The parameters of `_revision_insert`, in the order `Persistence.write` has them.
+_REVISION = ("m", "n", "at", "msg", "ch", "sv", "se", "sp", "sq")
 
 
 @functools.cache
@@ -368,7 +376,9 @@ class Persistence:
         history twin (`hestore.journal.to_history`), so history is recorded
         where the rows change: on PostgreSQL by the write statement itself
         (data-modifying CTEs, no extra round trip), on SQLite by one more
-        statement per table. The first flush of a transaction
+        statement per table, before the writes (for an element table, one
+        over every row the flush deletes, updates or moves, however many
+        writes change it). The first flush of a transaction
         (``changes.bump``) also adds the revision's row, with ``message``.
 
         One statement per table and kind of change: an ``executemany`` on
@@ -388,8 +398,20 @@ class Persistence:
             return
         self._rev, self._keep = changes.revision, changes.history
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-        write = self._write
-        for table, rows in ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons)):
+        elements = ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons))
+        positions = changes.properties.positions if changes.properties is not None else []
+        # On SQLite each element table's rows this flush deletes, updates or moves are recorded by one
+        # statement first, not one per write (PostgreSQL records them inside the writes themselves).
+        journaled = self._keep and not self._pg
+        if journaled:
+            for table, rows in elements:
+                ids = [*rows.deleted, *(row[0] for row in rows.updated)]
+                if table is v:
+                    ids += [row[0] for row in positions]
+                if ids:
+                    self._journal(mesh_id, table, "old", ("id",), [ids])
+        write = functools.partial(self._write, journaled=journaled)
+        for table, rows in elements:
             write(mesh_id, table, "delete", ("id",), [(i,) for i in rows.deleted])
         write(mesh_id, v, "insert", _VERTEX_INSERT, changes.vertices.inserted)
         write(mesh_id, h, "insert", HE_COLUMNS, changes.halfedges.inserted)
@@ -403,6 +425,7 @@ class Persistence:
             self._write_bulk(mesh_id, changes.bulk)
         if changes.properties is not None:
             self._write_properties(mesh_id, changes.properties)
+            write(mesh_id, v, "update", _POSITION, positions)
         nv, ne, np_, nq = changes.counters
         values = {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump}
         if changes.bump and changes.history:
@@ -411,22 +434,27 @@ class Persistence:
                 # Whole tables wrote no history: what they created is counted here, once.
                 n = {name: len(columns["id"]) for name, columns in changes.bulk.tables.items()}
                 counts = created_changes(n["vertices"], n["halfedges"], n["edges"], n["polygons"])
-            sv, se, sp, sq = changes.start
-            values.update(n=changes.revision, at=datetime.now(timezone.utc), msg=message, ch=counts,
-                          sv=sv, se=se, sp=sp, sq=sq)
+            at = datetime.now(timezone.utc)
             if self._pg:
+                sv, se, sp, sq = changes.start
+                values.update(n=changes.revision, at=at, msg=message, ch=counts, sv=sv, se=se, sp=sp, sq=sq)
                 # The revision's row rides on the counters' update: one round trip.
                 self.st.get("upd_mesh_added", lambda: _mesh_update().add_cte(_revision_insert().cte("added"))).run(
                     self.cursor(), values
                 )
                 return
-            self.st.get("add_revision", _revision_insert).run(self.cursor(), values)
+            # As sqlite3's datetime adapter wrote it (deprecated since Python 3.12), without the adapter's call.
+            row = (mesh_id, changes.revision, at.isoformat(" "), message, counts, *changes.start)
+            self.st.get("add_revision", _revision_insert).run_ordered(self.cursor(), _REVISION, row)
         self.st.get("upd_mesh", _mesh_update).run(self.cursor(), values)
 
     def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
-        """Catalogue, values and positions of one flush, in `PropertyChanges`' order."""
+        """Catalogue, values and bulk positions of one flush, in `PropertyChanges`' order.
+
+        `write` writes the positions set one by one, after these.
+        """
         write = self._write
-        v, catalogue = schema.vertices, schema.properties
+        catalogue = schema.properties
         for prop in pc.removed:
             self._clear(mesh_id, prop)
         write(mesh_id, catalogue, "delete", ("id",), [(p.id,) for p in pc.removed])
@@ -447,7 +475,6 @@ class Persistence:
             write(mesh_id, table, "delete", _VALUE_KEY, keys)
         for table, rows in upserts.items():
             write(mesh_id, table, "upsert", _value_columns(table), rows)
-        write(mesh_id, v, "update", _POSITION, pc.positions)
         # Purged after the writes: values set in this flush on elements it deletes go too.
         purge: dict = {}
         for prop, ids in pc.purge:
@@ -535,13 +562,15 @@ class Persistence:
         before the transaction (it is net).
         """
         if key == ("id",):
+            cursor, head = self.cursor(), (self._rev, mesh_id)
             for chunk, size in in_chunks(columns[0]):
 
                 def build(size=size):
                     return to_history(table, what, "sqlite", table.c.id.in_(in_keys(size)))
 
-                values = {"m": mesh_id, "r": self._rev, **padded(chunk, size)}
-                self.st.get(("journal", what, table.name, size), build).run(self.cursor(), values)
+                # Every edit pays for this call: the values go in order, the IN list padded with its last id.
+                values = (*head, *chunk, *(chunk[-1],) * (size - len(chunk)))
+                self.st.get(("journal", what, table.name, size), build).run_ordered(cursor, _in_names(size), values)
             return
         stmt = self.st.get(
             ("journal", what, table.name, key),
@@ -572,18 +601,25 @@ class Persistence:
             write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, progress=report)
             done += len(columns["id"])
 
-    def _write(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple]) -> None:
-        """Insert, update (by id, the first column) or delete (matching every column) rows of ``table``."""
-        if rows:
-            self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)])
+    def _write(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple],
+               journaled: bool = False) -> None:
+        """Insert, update (by id, the first column) or delete (matching every column) rows of ``table``.
 
-    def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
+        ``journaled``: the rows' old versions are in history already (`write` recorded them).
+        """
+        if rows:
+            self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)], journaled)
+
+    def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list],
+                       journaled: bool = False) -> None:
         """`_write` for rows given as one list per column: one statement (up to three on SQLite with history)."""
         if not columns or not len(columns[0]):
             return
         versioned, key, at, records = _recording(table.name, what, cols)
         if versioned and what != "delete":
             cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
+        if journaled:
+            records = tuple(r for r in records if r != "old")
         if not (versioned and self._keep and records):
             self._write_statement(mesh_id, table, what, cols, columns)
             return
