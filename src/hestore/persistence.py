@@ -26,7 +26,9 @@ from sqlalchemy.schema import CreateTable
 from hestore import schema
 from hestore.columns import write_columns
 from hestore.journal import created_changes, to_history
-from hestore.statements import MAX_IN, StatementCache, in_chunks, in_keys, in_list_bucket, indexed_by, padded
+from hestore.statements import (
+    MAX_IN, StatementCache, in_chunks, in_keys, in_list_bucket, indexed_by, padded, padded_values,
+)
 from hestore.unitofwork import (
     HE_COLUMNS,
     K_EDGE,
@@ -568,8 +570,8 @@ class Persistence:
                 def build(size=size):
                     return to_history(table, what, "sqlite", table.c.id.in_(in_keys(size)))
 
-                # Every edit pays for this call: the values go in order, the IN list padded with its last id.
-                values = (*head, *chunk, *(chunk[-1],) * (size - len(chunk)))
+                # Every edit pays for this call: the values go in order, without a dict.
+                values = (*head, *padded_values(chunk, size))
                 self.st.get(("journal", what, table.name, size), build).run_ordered(cursor, _in_names(size), values)
             return
         stmt = self.st.get(

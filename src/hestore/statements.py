@@ -19,7 +19,9 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-__all__ = ["Prepared", "StatementCache", "in_list_bucket", "in_chunks", "in_keys", "indexed_by", "padded"]
+__all__ = [
+    "Prepared", "StatementCache", "in_list_bucket", "in_chunks", "in_keys", "indexed_by", "padded", "padded_values",
+]
 
 #: Longest ``IN`` list compiled; longer lists are sent in chunks of this size.
 MAX_IN = 512
@@ -182,14 +184,22 @@ def in_keys(size: int, prefix: str = "i") -> list:
     return [sa.bindparam(f"{prefix}{k}") for k in range(size)]
 
 
+def padded_values(values: Sequence, size: int) -> tuple:
+    """The values of an ``IN`` list of ``size``, in order: ``values`` padded with its last value.
+
+    >>> padded_values([7, 9, 4], 4)
+    (7, 9, 4, 4)
+    """
+    return (*values, *(values[-1],) * (size - len(values)))
+
+
 def padded(values: Sequence, size: int, prefix: str = "i") -> dict[str, Any]:
     """Bind values ``{prefix}0 … {prefix}{size-1}`` for an ``IN`` list of ``size``, padded with the last value.
 
     >>> padded([7, 9, 4], 4)
     {'i0': 7, 'i1': 9, 'i2': 4, 'i3': 4}
     """
-    last = len(values) - 1
-    return {f"{prefix}{k}": values[min(k, last)] for k in range(size)}
+    return {f"{prefix}{k}": v for k, v in enumerate(padded_values(values, size))}
 
 
 class StatementCache:
