@@ -109,7 +109,7 @@ def _load_statement(sizes: tuple) -> sa.CompoundSelect:
 _SIZED_ROWS = 100_000
 
 
-def _pg_arrays(types, sized: bool = False) -> str:
+def _pg_arrays(types, sized: bool) -> str:
     """The arguments of ``unnest`` for one array parameter of each of ``types``.
 
     ``%b``: psycopg sends the arrays in binary, without formatting every
@@ -125,7 +125,7 @@ def _pg_arrays(types, sized: bool = False) -> str:
     return ", ".join(f"%b::{t}[]" if sized else f"(SELECT %b::{t}[])" for t in types)
 
 
-def _pg_statement(table: sa.Table, what: str, cols: tuple, sized: bool = False) -> str:
+def _pg_statement(table: sa.Table, what: str, cols: tuple, sized: bool) -> str:
     """PostgreSQL SQL writing many rows of ``table`` from one array per column (``sized``: see `_pg_arrays`)."""
     q = '"{}"'.format
 
@@ -160,11 +160,12 @@ def _of_property(table: sa.Table):
     return table.c.property == sa.bindparam("q")
 
 
-def _pg_to_history(table: sa.Table, what: str, key: tuple, sized: bool = False) -> str:
+def _pg_to_history(table: sa.Table, what: str, key: tuple, sized: bool) -> str:
     """`hestore.journal.to_history` on PostgreSQL for the keys of ``unnest``-ed arrays, as a CTE of their write.
 
     Parameters: ``old`` takes the revision, the key arrays, the mesh and the
     revision again; ``new`` the revision, the mesh and the key arrays.
+    ``sized``: see `_pg_arrays`.
     """
     q = '"{}"'.format
     history = schema.HISTORY[table.name]
@@ -200,6 +201,7 @@ _VALUE_TABLE_NAMES = frozenset(t.name for t in schema.VALUE_TABLES)
 def _in_names(size: int) -> tuple:
     """The revision, the mesh and an `in_keys` list of ``size``: the parameters of a journal statement, in order."""
     return ("r", "m", *(k.key for k in in_keys(size)))
+
 
 #: Rows from which a PostgreSQL bulk update goes through a scratch table.
 _STAGE_ROWS = 20_000
