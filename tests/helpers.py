@@ -131,6 +131,19 @@ def grid(mesh: hestore.Mesh, n: int = 2, m: int | None = None, *, positions: boo
     return V, Q
 
 
+def triangle_grid(n: int) -> tuple[list, list]:
+    """An ``n`` × ``n``-cell grid of triangles as arrays: ``(positions, triangles)``.
+
+    Vertex ``v`` is at ``(v % (n + 1), v // (n + 1), 0)``; each cell is cut by
+    its diagonal from its lower-left corner ``v`` to ``v + n + 2``.
+    """
+    w = n + 1
+    positions = [(float(i % w), float(i // w), 0.0) for i in range(w * w)]
+    triangles = [f for j in range(n) for i in range(n)
+                 for v in (j * w + i,) for f in ([v, v + 1, v + w + 1], [v, v + w + 1, v + w])]
+    return positions, triangles
+
+
 #: Outward-oriented faces of a tetrahedron on vertices 0..3.
 TETRAHEDRON = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
 

@@ -30,7 +30,7 @@ import pytest
 import hestore
 from hestore.errors import MeshNotFoundError, StoreBusyError
 
-from helpers import dump
+from helpers import dump, triangle_grid
 
 CTX = multiprocessing.get_context("spawn")
 
@@ -447,3 +447,133 @@ def test_crossed_blocks_deadlock_loser_retries_and_nothing_is_lost(db_url, backe
             assert mesh.revision == 1 + 2
             assert mesh.check() == []
     assert max(r[2] for r in reports) >= 2, "expected the deadlock to make one block retry"
+
+
+# --------------------------------------------------------------------------
+# Undo and redo among other writers (SPEC §4, §4.1): what they restore is decided under the lock
+
+
+def _stepper(url: str, worker: int, attempts: int, start, results) -> None:
+    """Make ``attempts`` random attempts on mesh "m": an Euler operator (predicate first), undo or redo."""
+    from hestore.errors import ElementNotFoundError, RevisionNotFoundError, TopologyError
+
+    try:
+        store = hestore.open(url, busy_timeout=20.0)
+        mesh = store.mesh("m")
+        rng = random.Random(worker)
+        start.wait(timeout=WAIT)
+        done = {"operator": 0, "undo": 0, "redo": 0, "refused": 0, "busy": 0}
+        deadline = time.monotonic() + WAIT - 20
+        for _ in range(attempts):
+            if time.monotonic() > deadline:
+                break
+            what = rng.choice(["operator", "operator", "undo", "redo"])
+            try:
+                if what == "undo":
+                    mesh.undo()
+                elif what == "redo":
+                    mesh.redo()
+                else:
+                    edges = list(mesh.edges())  # none after an undo of the import
+                    edge = rng.choice(edges) if edges else None
+                    op = rng.choice(["flip", "split", "poke", "collapse"])
+                    if edge is None:
+                        what = "refused"
+                    elif op == "flip" and mesh.can_flip_edge(edge):
+                        mesh.flip_edge(edge)
+                    elif op == "split":
+                        mesh.split_edge(edge)
+                    elif op == "poke" and edge.halfedge.polygon is not None:
+                        mesh.poke_polygon(edge.halfedge.polygon)
+                    elif op == "collapse" and mesh.can_collapse_edge(edge.halfedge):
+                        mesh.collapse_edge(edge.halfedge)
+                    else:
+                        what = "refused"
+                done[what] += 1
+            except (RevisionNotFoundError, ElementNotFoundError, TopologyError):
+                # nothing to undo or redo, or an element another process removed meanwhile
+                done["refused"] += 1
+            except StoreBusyError:
+                done["busy"] += 1
+        store.close()
+        results.put(("ok", worker, done))
+    except BaseException:
+        results.put(("error", worker, traceback.format_exc()))
+
+
+def _viewer(url: str, worker: int, stop, results) -> None:
+    """Read views ``at(r)`` of random committed revisions until ``stop``: each must be a valid mesh."""
+    try:
+        store = hestore.open(url)
+        mesh = store.mesh("m")
+        rng = random.Random(100 + worker)
+        seen = 0
+        bad = []
+        deadline = time.monotonic() + WAIT - 20
+        while not stop.is_set() and time.monotonic() < deadline:
+            r = rng.randint(1, mesh.revision)
+            view = mesh.at(r)
+            problems = view.check()
+            if problems:
+                bad.append((r, [str(p) for p in problems[:3]]))
+            seen += 1
+        store.close()
+        results.put(("ok", worker, seen, bad))
+    except BaseException:
+        results.put(("error", worker, traceback.format_exc()))
+
+
+def test_undo_and_redo_among_concurrent_writers_lose_no_edit(db_url):
+    """Four processes make random operators, undos and redos on one mesh while two read views of it.
+
+    Afterwards the whole history is replayed: every undo must have undone
+    the most recent change not yet undone at its commit, every redo
+    re-applied the most recently undone one, and each must equal the state
+    it claims to restore. An undo decided from a stale history would restore
+    an older state and throw away another process's committed edit.
+    """
+    with hestore.open(db_url) as store:
+        store.import_arrays("m", *triangle_grid(4))
+    writers, attempts = 4, 30
+    start, stop = CTX.Barrier(writers), CTX.Event()
+    results, views = CTX.Queue(), CTX.Queue()
+    readers = [_run(_viewer, db_url, w, stop, views) for w in range(2)]
+    procs = [_run(_stepper, db_url, w, attempts, start, results) for w in range(writers)]
+    try:
+        reports = _gather(procs, results)
+    finally:
+        stop.set()
+    seen = _gather(readers, views)
+    assert all(not r[3] for r in seen), f"a view of a committed revision is broken: {seen}"
+    done = {k: sum(r[2][k] for r in reports) for k in reports[0][2]}
+    assert done["undo"] > 0 and done["operator"] > 0, done
+
+    with hestore.open(db_url) as store:
+        mesh = store.mesh("m")
+        history = list(reversed(mesh.history()))
+        assert [r.number for r in history] == list(range(1, mesh.revision + 1))
+        assert sum(done[k] for k in ("operator", "undo", "redo")) == mesh.revision - 1
+        undo_stack, redo_stack = [], []
+        for rev in history:
+            message = rev.message or ""
+            n = rev.number
+            if message.startswith(("undo of revision ", "redo of revision ")):
+                target = int(message.rsplit(" ", 1)[1])
+                action = message.split(" ")[0]
+                stack = undo_stack if action == "undo" else redo_stack
+                assert stack, f"revision {n} is an {action} of {target}, but there was nothing to {action}"
+                assert stack[-1] == target, (
+                    f"revision {n} is an {action} of {target}, but the most recent change that could be "
+                    f"{action}ne was {stack[-1]}: an edit was lost"
+                )
+                stack.pop()
+                state = target - 1 if action == "undo" else target
+                assert not mesh.diff(state, n), f"revision {n} ({message}) is not equal to revision {state}"
+                if action == "undo":
+                    redo_stack.append(target)
+                else:
+                    undo_stack.append(n)
+            else:
+                undo_stack.append(n)
+                redo_stack.clear()
+        assert mesh.check() == []

@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import traceback
 import uuid
 from datetime import datetime, timezone
@@ -54,6 +55,7 @@ from hestore.errors import (
 )
 
 from conftest import BACKENDS, _pg_schema_url
+from helpers import triangle_grid
 from test_concurrency import CTX, WAIT, _gather, _run, _stop
 
 KINDS = ("vertex", "halfedge", "edge", "polygon")
@@ -907,6 +909,185 @@ def test_a_view_of_a_revision_pruned_since_refuses_to_read(store):
         pass
 
 
+def _view_reads(view: hestore.Mesh, tmp_path: Path) -> dict:
+    """Every kind of read of a view, each a call: what must all refuse once the view's revision is gone."""
+    v = view.vertex(0)
+    h = v.halfedge
+    p = view.polygon(0)
+    return {
+        "counts": view.counts,
+        "vertex": lambda: view.vertex(1),
+        "missing vertex": lambda: view.vertex(10**6),
+        "position": lambda: v.position,
+        "halfedge of a vertex": lambda: v.halfedge,
+        "neighbors": lambda: v.neighbors(),
+        "one ring": lambda: list(v.outgoing()),
+        "twin": lambda: h.twin,
+        "next": lambda: h.next,
+        "polygon corners": lambda: p.vertices(),
+        "find_halfedge": lambda: view.find_halfedge(v, view.vertex(1)),
+        "is_boundary": lambda: v.is_boundary,
+        "vertices": lambda: list(view.vertices()),
+        "property": lambda: v["t"],
+        "properties": lambda: view.properties("vertex"),
+        "property_array": lambda: view.property_array("vertex", "t"),
+        "k_ring": lambda: view.k_ring(v, 2),
+        "shortest_path": lambda: view.shortest_path(v, view.vertex(5)),
+        "stats": view.stats,
+        "check": view.check,
+        "boundary_loops": view.boundary_loops,
+        "components": view.components,
+        "to_arrays": view.to_arrays,
+        "to_networkx": lambda: view.to_networkx(),
+        "export": lambda: view.export(tmp_path / "view.ply"),
+        "at": lambda: view.at(view.revision),
+    }
+
+
+def _refused(reads: dict, error: type, match: str) -> list:
+    """The names of the ``reads`` that do not raise ``error`` with ``match``, and what they did instead."""
+    wrong = []
+    for name, read in reads.items():
+        try:
+            got = read()
+        except error as exc:
+            if not re.search(match, str(exc)):
+                wrong.append((name, str(exc)))
+        except Exception as exc:  # noqa: BLE001 - reported
+            wrong.append((name, repr(exc)))
+        else:
+            wrong.append((name, f"returned {got!r:.80}"))
+    return wrong
+
+
+def _edited_grid(store: hestore.Store, name: str = "g", **options) -> hestore.Mesh:
+    """A 3 × 3 grid (revision 1) with a property (2), three moved vertices (3–5) and a removed polygon (6)."""
+    mesh = store.import_arrays(name, *triangle_grid(3), **options).mesh
+    mesh.add_property("vertex", "t", "float64", default=1.0)
+    for i in range(3):
+        mesh.set_position(mesh.vertex(i), (float(i), -1.0, 0.5))
+    mesh.remove_polygon(mesh.polygon(17))
+    return mesh
+
+
+def test_a_view_another_store_prunes_away_refuses_every_read(db_url, tmp_path):
+    """SPEC §4.1: pruned revisions can no longer be viewed, also through a view opened before the prune."""
+    with hestore.open(db_url) as one, hestore.open(db_url) as two:
+        mesh = _edited_grid(one)
+        views = {r: mesh.at(r) for r in (2, 3, 6)}
+        reads = {r: _view_reads(view, tmp_path) for r, view in views.items()}
+        expected = {r: snapshot(view) for r, view in views.items()}
+        with pytest.raises(ElementNotFoundError):
+            reads[2].pop("missing vertex")()  # while the revision is kept, an element it never had is missing
+        for read in reads[2].values():
+            read()  # and every other read works
+        assert two.mesh("g").prune_history(keep=2) == 5
+        assert _refused(reads[2], RevisionNotFoundError, "no longer kept") == []
+        with pytest.raises(RevisionNotFoundError):
+            snapshot(views[3])
+        assert snapshot(views[6]) == expected[6] and views[6].check() == []
+        assert [r.number for r in mesh.history()] == [6, 5]
+        with pytest.raises(RevisionNotFoundError):
+            mesh.diff(3, 6)
+        # the mesh is unchanged: only its past went
+        assert snapshot(mesh) == expected[6] and mesh.check() == []
+
+
+def test_a_view_of_a_mesh_another_store_deletes_refuses_every_read(db_url, tmp_path):
+    with hestore.open(db_url) as one, hestore.open(db_url) as two:
+        mesh = _edited_grid(one)
+        reads = _view_reads(mesh.at(2), tmp_path)
+        two.delete_mesh("g")
+        assert _refused(reads, hestore.MeshNotFoundError, "deleted") == []
+
+
+def test_a_view_of_a_mesh_without_history_refuses_once_another_store_edits_it(db_url, tmp_path):
+    with hestore.open(db_url) as one, hestore.open(db_url) as two:
+        mesh = _edited_grid(one, history=False)
+        view = mesh.at(mesh.revision)  # the current revision is the one that can be read
+        expected = snapshot(view)
+        reads = _view_reads(view, tmp_path)
+        assert snapshot(view) == snapshot(mesh)
+        other = two.mesh("g")
+        other.set_position(other.vertex(4), (9.0, 9.0, 9.0))
+        assert _refused(reads, RevisionNotFoundError, "no history") == []
+        assert snapshot(mesh) != expected
+
+
+def _pruner(url: str, rounds: int, results) -> None:
+    """Split an edge per revision (so revision ``r`` has ``r + 15`` vertices), pruning to 3 revisions now and then."""
+    try:
+        store = hestore.open(url, busy_timeout=20.0)
+        mesh = store.mesh("g")
+        for i in range(rounds):
+            mesh.split_edge(mesh.edge(i % 20))
+            if i % 4 == 3:
+                mesh.prune_history(keep=3)
+        store.close()
+        results.put(("ok", rounds))
+    except BaseException:
+        results.put(("error", None, traceback.format_exc()))
+
+
+def _pruned_viewer(url: str, seed: int, stop, results) -> None:
+    """Read views of random revisions while another process prunes: right, or `RevisionNotFoundError`."""
+    import random
+
+    try:
+        store = hestore.open(url)
+        mesh = store.mesh("g")
+        rng = random.Random(seed)
+        read = gone = 0
+        wrong = []
+        while not stop.is_set() and len(wrong) < 5:
+            r = rng.randint(1, mesh.revision)
+            try:
+                view = mesh.at(r)
+            except RevisionNotFoundError:
+                gone += 1
+                continue
+            for what in ("counts", "check", "arrays", "ring", "position"):
+                try:
+                    if what == "counts":
+                        got = view.counts().vertices
+                    elif what == "check":
+                        got = [str(p) for p in view.check()]
+                    elif what == "arrays":
+                        got = len(view.to_arrays().positions)
+                    elif what == "ring":
+                        got = len(view.k_ring(view.vertex(0), 1)) > 1
+                    else:
+                        got = view.vertex(15 + r - 1).position is not None if r > 1 else True
+                except RevisionNotFoundError:
+                    gone += 1
+                    continue
+                want = {"counts": r + 15, "check": [], "arrays": r + 15, "ring": True, "position": True}[what]
+                read += 1
+                if got != want:
+                    wrong.append((r, what, got, want))
+        store.close()
+        results.put(("ok", read, gone, wrong))
+    except BaseException:
+        results.put(("error", None, traceback.format_exc()))
+
+
+def test_views_read_while_another_process_prunes_are_right_or_refuse(db_url):
+    """Two processes read views of random revisions while a third edits and prunes: never a broken mesh."""
+    with hestore.open(db_url) as store:
+        store.import_arrays("g", *triangle_grid(3))
+    stop = CTX.Event()
+    results, views = CTX.Queue(), CTX.Queue()
+    viewers = [_run(_pruned_viewer, db_url, seed, stop, views) for seed in range(2)]
+    pruner = [_run(_pruner, db_url, 40, results)]
+    try:
+        _gather(pruner, results)
+    finally:
+        stop.set()
+    reports = _gather(viewers, views)
+    assert all(not r[3] for r in reports), f"views read states that never existed: {reports}"
+    assert sum(r[1] for r in reports) > 0 and sum(r[2] for r in reports) > 0, reports
+
+
 # --------------------------------------------------------------------------
 # 7. Meshes without history
 
@@ -969,11 +1150,84 @@ def _without_history(store: hestore.Store, how: str) -> None:
 
 def _grid(store: hestore.Store, name: str, n: int, history: bool) -> hestore.Mesh:
     """An n×n-cell grid of triangles, each cell split by its diagonal v → v+n+2."""
-    w = n + 1
-    positions = [(float(i % w), float(i // w), 0.0) for i in range(w * w)]
-    faces = [f for j in range(n) for i in range(n)
-             for v in (j * w + i,) for f in ([v, v + 1, v + w + 1], [v, v + w + 1, v + w])]
-    return store.import_arrays(name, positions, faces, history=history).mesh
+    return store.import_arrays(name, *triangle_grid(n), history=history).mesh
+
+
+def _work(store: hestore.Store, db_url: str, call) -> tuple[object, int]:
+    """``call()``'s result, and the work its reads cost the database, counted, not timed.
+
+    Every SELECT the call sends is run again on a connection of its own:
+    on PostgreSQL under ``EXPLAIN (ANALYZE, BUFFERS)`` (the buffers its
+    plan touched), on SQLite with a progress handler (its virtual machine's
+    instructions, in thousands). Both grow with the rows a plan visits, so a
+    plan that turns a linear read quadratic shows, whatever the clock says.
+    """
+    sent = []
+    with store.session.traced(lambda sql, params: sent.append((sql, params)), parameters=True):
+        result = call()
+    reads = [(sql, params) for sql, params in sent if sql.lstrip().upper().startswith(("SELECT", "WITH", "("))]
+    work = 0
+    if store.session.is_sqlite:
+        import sqlite3
+
+        conn = sqlite3.connect(sa.engine.make_url(db_url).database)
+        steps = [0]
+
+        def count():
+            steps[0] += 1
+            return 0
+
+        conn.set_progress_handler(count, 1000)
+        for sql, params in reads:
+            conn.execute(sql, params or ()).fetchall()
+        conn.close()
+        return result, steps[0]
+    engine = sa.create_engine(db_url, poolclass=sa.pool.NullPool)
+    try:
+        raw = engine.raw_connection()
+        cur = raw.cursor()
+        for sql, params in reads:
+            cur.execute("EXPLAIN (ANALYZE, BUFFERS, FORMAT JSON) " + sql, params)
+            plan = cur.fetchone()[0][0]["Plan"]
+            work += plan.get("Shared Hit Blocks", 0) + plan.get("Shared Read Blocks", 0)
+        raw.close()
+    finally:
+        engine.dispose()
+    return result, work
+
+
+def test_history_of_bulk_writes_costs_what_they_changed(store, db_url):
+    """``history`` and ``diff`` of a bulk property write and of ``set_positions`` read in linear time.
+
+    On PostgreSQL right after such a write the planner has no statistics of
+    the rows just written, and a read that joined the history to itself by
+    key was planned as a loop over one range of it per changed key: 19 s
+    for 43,680 values. Here the work per changed value must stay bounded,
+    on both databases, whatever the planner knows.
+    """
+    mesh = _grid(store, "g", 60, True)  # 22,080 half-edges, 3,721 vertices
+    counts = mesh.counts()
+    mesh.add_property("halfedge", "w", "float64", default=0.0)
+    ids, _ = mesh.property_array("halfedge", "w")
+    mesh.set_property_array("halfedge", "w", ids, np.arange(1, len(ids) + 1, dtype=np.float64))  # revision 3
+    positions = mesh.to_arrays().positions
+    mesh.set_positions(np.arange(counts.vertices), positions + 1.0)  # revision 4
+    changed = counts.halfedges + counts.vertices
+    calls = {
+        "history(limit=1) after set_positions": lambda: mesh.history(limit=1)[0].changes["vertex"]["changed"],
+        "history(limit=2)": lambda: [r.changes for r in mesh.history(limit=2)],
+        "diff(2, 3), before the last revision": lambda: len(mesh.diff(2, 3).changed["halfedge"]),
+        "diff(3, 2)": lambda: len(mesh.diff(3, 2).changed["halfedge"]),
+        "diff(2, 4)": lambda: mesh.diff(2, 4).counts(),
+    }
+    results = {}
+    for name, call in calls.items():
+        results[name], work = _work(store, db_url, call)
+        assert work < 20 * changed, f"{name}: {work} units of work for {changed} changed values"
+    assert results["history(limit=1) after set_positions"] == counts.vertices
+    assert results["diff(2, 3), before the last revision"] == results["diff(3, 2)"] == counts.halfedges
+    assert results["history(limit=2)"][1]["halfedge"] == {"created": 0, "removed": 0, "changed": counts.halfedges}
+    assert results["diff(2, 4)"]["vertex"]["changed"] == counts.vertices
 
 
 @pytest.mark.parametrize("backend", [pytest.param("postgresql", marks=pytest.mark.postgresql)])

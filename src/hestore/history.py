@@ -170,10 +170,16 @@ def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
         limit = revision_number(limit, "limit")
         if limit < 0:
             raise InvalidInputError(f"limit must be at least 0, not {limit}")
-    return [
+    kept = [
         Revision(int(n), _utc(at), message, changes_of(mesh, int(n), stored))
         for n, at, message, stored, _action, _target in mesh.session.revisions(mesh.ref, limit)
     ]
+    if not kept:
+        return kept
+    # Another process may have pruned meanwhile, taking rows some changes were read from: those
+    # revisions are gone. A prune only moves forward, so what is kept now was kept all along.
+    oldest = mesh.session.oldest_kept(mesh.ref)
+    return [r for r in kept if r.number >= oldest]
 
 
 def _utc(at: datetime) -> datetime:
@@ -224,13 +230,19 @@ def redo(mesh: "Mesh") -> int:
 
 
 def _step(mesh: "Mesh", action: str) -> int:
-    mesh.session.restorable(mesh.ref, action)
-    stack = _stacks(mesh)[0 if action == "undo" else 1]
-    if not stack:
-        raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to {action}")
-    target = stack[-1]
-    state = target - 1 if action == "undo" else target  # before the change, or after it
-    return mesh.session.restore(mesh.ref, state, f"{action} of revision {target}", action, target)
+    session = mesh.session
+    session.restorable(mesh.ref, action)
+    # What to restore is decided under the writer lock, from the history as committed then: a stack
+    # read before the lock is granted may miss a revision another writer committed meanwhile, and
+    # restoring from it would throw that edit away.
+    with session.scope():
+        session.lock(mesh.ref)
+        stack = _stacks(mesh)[0 if action == "undo" else 1]
+        if not stack:
+            raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to {action}")
+        target = stack[-1]
+        state = target - 1 if action == "undo" else target  # before the change, or after it
+        return session.restore(mesh.ref, state, f"{action} of revision {target}", action, target)
 
 
 def prune(mesh: "Mesh", keep: int) -> int:

@@ -29,8 +29,8 @@ from hestore import schema
 from hestore.statements import indexed_by
 
 __all__ = [
-    "to_history", "as_of", "request_as_of", "touched", "created", "rows_at", "changed_rows", "restore_statements",
-    "created_changes", "COUNTED", "COUNTERS", "restored",
+    "to_history", "as_of", "as_of_kept", "request_as_of", "touched", "created", "rows_at", "changed_rows",
+    "restore_statements", "created_changes", "COUNTED", "COUNTERS", "restored",
 ]
 
 #: The element kinds of SPEC §4.1's ``changes``.
@@ -283,6 +283,26 @@ def as_of(statement, revision: Any, mesh: Any = None):
     return replacement_traverse(statement, {}, replace)
 
 
+def as_of_kept(statement: sa.Select, revision: Any, mesh: Any) -> sa.Select:
+    """`as_of`, reading no rows unless ``revision`` of ``mesh`` is still kept in the state it reads.
+
+    A view's single statement then never mixes the rows a prune (or an edit
+    of a mesh without history) left with the rows it took away: it reads the
+    revision whole, or nothing, and the caller asks why.
+
+    Examples
+    --------
+    >>> v = schema.vertices
+    >>> "kept_from" in str(as_of_kept(sa.select(v.c.id).where(v.c.mesh_id == 1), 4, 1))
+    True
+    """
+    m = schema.meshes.alias("kept")
+    kept = sa.exists().where(
+        m.c.id == mesh, sa.or_(m.c.revision == revision, sa.and_(m.c.history, m.c.kept_from <= revision))
+    )
+    return as_of(statement, revision, mesh).where(kept)
+
+
 def _conjuncts(condition: Any) -> list:
     """The terms of a conjunction (a single condition is one term; None none)."""
     if condition is None:
@@ -362,38 +382,58 @@ def created(table: sa.Table, start: dict, end: dict):
     return (table.c.id >= step * start[name]) & (table.c.id < step * end[name])
 
 
-def rows_at(table: sa.Table, revision: Any, keys: sa.Select | None = None, new=None) -> sa.Select | sa.CompoundSelect:
-    """The rows of ``table`` at ``revision`` (without ``mesh_id`` and ``rev``): all, or those with ``keys``.
-
-    ``new``: a condition that picks more rows (`created`'s). Each is a
-    select of its own, so each reaches the rows through the key.
-    """
+def rows_at(table: sa.Table, revision: Any) -> sa.Select | sa.CompoundSelect:
+    """The rows of ``table`` at ``revision`` (without ``mesh_id`` and ``rev``), of the mesh ``:m``."""
     cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
-    stmt = sa.select(*cols).where(table.c.mesh_id == sa.bindparam("m"))
-    if keys is None:
-        return as_of(stmt, revision)
-    key = [c for c in table.primary_key if c.name != "mesh_id"]
-    picked = as_of(stmt.where(sa.tuple_(*key).in_(keys)), revision)
-    return picked if new is None else sa.union(picked, as_of(stmt.where(new), revision))
+    return as_of(sa.select(*cols).where(table.c.mesh_id == sa.bindparam("m")), revision)
 
 
 #: The id counters of `COUNTED`, as ``changed_rows`` binds them (``:s_<name>`` at the start, ``:e_<name>`` after).
 COUNTERS = tuple(dict.fromkeys(name for name, _step in COUNTED.values()))
 
 
-def changed_rows(table: sa.Table, whole: bool) -> sa.Select:
-    """`rows_at` revision ``:r`` of the keys changed in revisions ``(:lo, :hi]`` (``whole``: every row).
+def changed_rows(table: sa.Table, side: str) -> sa.Select | sa.CompoundSelect:
+    """The rows of the keys changed in revisions ``(:lo, :hi]``, as they were at ``:lo`` or at ``:hi``.
 
-    Bind parameters only (``:m``, ``:r``, ``:lo``, ``:hi`` and the counters
-    of `COUNTERS`), so one compiled statement per table serves every pair
-    of revisions.
+    ``side`` is ``"before"`` (at ``:lo``), ``"after"`` (at ``:hi``), or
+    ``"whole"``: every row of the mesh at ``:r``. Bind parameters only
+    (``:m``, ``:lo``, ``:hi``, ``:r`` and the counters of `COUNTERS`), so
+    one compiled statement per table and side serves every pair of
+    revisions.
+
+    No side joins the history to itself, so no plan can make it quadratic,
+    whatever the planner believes about the tables' sizes:
+
+    * before: the version of a key valid at ``:lo`` is the one its first
+      change after ``:lo`` superseded, so its ``rev_to`` is in
+      ``(:lo, :hi]`` — one range of the history's ``(mesh_id, rev_to)``
+      order, the very range that says which keys changed;
+    * after: the current rows of the keys changed (each by its key) and of
+      the ids created in between (a range of ids), and the versions valid at
+      ``:hi`` that a later revision superseded: written in ``(:lo, :hi]``,
+      superseded after ``:hi`` — one range again.
     """
-    if whole:
+    if side == "whole":
         return rows_at(table, sa.bindparam("r"))
+    history = schema.HISTORY[table.name]
+    lo, hi, m = (sa.bindparam(n, type_=sa.BigInteger()) for n in ("lo", "hi", "m"))
+    cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
+    old = [history.c[c.name] for c in cols]
+    if side == "before":
+        return sa.select(*old).where(history.c.mesh_id == m, history.c.rev_to > lo, history.c.rev_to <= hi,
+                                     history.c.rev <= lo)
+    key = [c for c in table.primary_key if c.name != "mesh_id"]
+    current = sa.select(*cols).where(table.c.mesh_id == m, table.c.rev <= hi)
+    parts = [current.where(sa.tuple_(*key).in_(touched(table, lo, hi)))]
     start = {n: sa.bindparam(f"s_{n}", type_=sa.BigInteger()) for n in COUNTERS}
     end = {n: sa.bindparam(f"e_{n}", type_=sa.BigInteger()) for n in COUNTERS}
-    keys = touched(table, sa.bindparam("lo"), sa.bindparam("hi"))
-    return rows_at(table, sa.bindparam("r"), keys, created(table, start, end))
+    new = created(table, start, end)
+    if new is not None:
+        parts.append(current.where(new))
+    parts.append(sa.select(*old).where(history.c.mesh_id == m, history.c.rev_to > hi, history.c.rev > lo,
+                                       history.c.rev <= hi))
+    # UNION, not UNION ALL: a key both changed and created in between is in the first two parts.
+    return sa.union(*parts)
 
 
 def restore_statements(table: sa.Table, target: int, revision: int, since: dict) -> list:

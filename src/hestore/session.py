@@ -62,6 +62,7 @@ from hestore.columns import read_columns, read_snapshot
 from hestore.journal import (
     COUNTERS,
     as_of,
+    as_of_kept,
     changed_rows,
     request_as_of,
     restore_statements,
@@ -143,18 +144,25 @@ class Snapshot:
 
 
 class _TracingCursor:
-    """A DBAPI cursor that reports every statement before running it."""
+    """A DBAPI cursor that reports every statement (and, if asked, its parameters) before running it."""
 
-    def __init__(self, cursor: Any, callback: Callable[[str], object]) -> None:
+    def __init__(self, cursor: Any, callback: Callable[..., object], parameters: bool) -> None:
         self._cursor = cursor
         self._callback = callback
+        self._parameters = parameters
+
+    def _report(self, sql, args) -> None:
+        if self._parameters:
+            self._callback(sql, args[0] if args else None)
+        else:
+            self._callback(sql)
 
     def execute(self, sql, *args, **kwargs):
-        self._callback(sql)
+        self._report(sql, args)
         return self._cursor.execute(sql, *args, **kwargs)
 
     def executemany(self, sql, *args, **kwargs):
-        self._callback(sql)
+        self._report(sql, args)
         return self._cursor.executemany(sql, *args, **kwargs)
 
     def __getattr__(self, name: str) -> Any:
@@ -658,13 +666,18 @@ class Session:
                 stmt = self.statements.get(key, build)
             else:
                 stmt = self.statements.get(
-                    ("as_of", key), lambda: as_of(build(), sa.bindparam("asof"), sa.bindparam("m")), prepare=False
+                    ("as_of", key), lambda: as_of_kept(build(), sa.bindparam("asof"), sa.bindparam("m")),
+                    prepare=False,
                 )
                 values["asof"] = ref.revision
             values["m"] = ref.id
             cur = self._cur
             stmt.execute(cur, stmt.bind(values))
-            return cur.fetchall()
+            rows = cur.fetchall()
+            if not rows and ref.revision is not None:
+                # A view's statement reads nothing once its revision is no longer kept: say so, not "empty".
+                self._kept(ref, ref.revision)
+            return rows
         except HestoreError:
             raise
         except Exception as exc:
@@ -709,31 +722,37 @@ class Session:
                 conn = self._conn
             try:
                 with read_snapshot(conn):
-                    m = schema.meshes
-                    revision = conn.execute(sa.select(m.c.revision).where(m.c.id == ref.id)).scalar()
-                    if revision is None:
-                        raise self.missing(ref)
                     isolated = bool(other) or not self._scopes
-                    yield Snapshot(conn, ref.id, revision if ref.revision is None else ref.revision, isolated,
-                                   as_of=ref.revision)
+                    if ref.revision is None:
+                        m = schema.meshes
+                        revision = conn.execute(sa.select(m.c.revision).where(m.c.id == ref.id)).scalar()
+                        if revision is None:
+                            raise self.missing(ref)
+                        yield Snapshot(conn, ref.id, revision, isolated)
+                    else:
+                        # A revision of this block's own is not in the committed data: it is checked where it is
+                        # (no one else can prune a mesh the block has changed: the block holds its lock).
+                        mine = other and ref.id in self._changed
+                        with self._kept_during(ref, [ref.revision], self._conn if mine else conn):
+                            yield Snapshot(conn, ref.id, ref.revision, isolated, as_of=ref.revision)
             finally:
                 if other:
                     conn.close()
 
     # -- history (SPEC §4.1) ------------------------------------------------
 
-    def _history_row(self, ref: MeshRef) -> tuple:
+    def _history_row(self, ref: MeshRef, conn: sa.Connection | None = None) -> tuple:
         m = schema.meshes
-        row = self._conn.execute(
+        row = (conn or self._conn).execute(
             sa.select(m.c.revision, m.c.kept_from, m.c.history).where(m.c.id == ref.id)
         ).first()
         if row is None:
             raise self.missing(ref)
         return tuple(row)
 
-    def _kept(self, ref: MeshRef, revision: int) -> int:
-        """Check that ``revision`` of the mesh can be read; return the current revision."""
-        current, kept_from, keep = self._history_row(ref)
+    def _kept(self, ref: MeshRef, revision: int, conn: sa.Connection | None = None) -> int:
+        """Check that ``revision`` of the mesh can be read (on ``conn``); return the current revision."""
+        current, kept_from, keep = self._history_row(ref, conn)
         if revision == current:
             return current
         if revision < 0 or revision > current:
@@ -751,6 +770,32 @@ class Session:
                 f"and the oldest revision kept is {kept_from}"
             )
         return current
+
+    @contextmanager
+    def _kept_during(self, ref: MeshRef, revisions, conn: sa.Connection) -> Iterator[None]:
+        """Check that ``revisions`` of the mesh are kept for the reads of the block, made on ``conn``.
+
+        Checked before the reads, in the same snapshot. A PostgreSQL block
+        reads at READ COMMITTED, each statement in a snapshot of its own, so
+        another process's prune may commit between them: there the check is
+        made again after the reads (a revision pruned stays pruned, so kept
+        then means kept all along), and a read that failed on rows the prune
+        took away is reported as the revision gone.
+        """
+        def check() -> None:
+            for r in revisions:
+                self._kept(ref, r, conn)
+
+        check()
+        shared = bool(self._scopes) and not self.is_sqlite and conn is self._conn
+        try:
+            yield
+        except HestoreError:
+            if shared:
+                check()
+            raise
+        if shared:
+            check()
 
     def view(self, ref: MeshRef, revision: int) -> MeshRef:
         """The identity of a read-only view of the mesh as it was at ``revision``.
@@ -774,6 +819,15 @@ class Session:
         views = [w for w in self._views.get(ref.id, ()) if w() is not None]
         self._views[ref.id] = [*views, weakref.ref(view)]
         return view
+
+    def oldest_kept(self, ref: MeshRef) -> int:
+        """The oldest revision of the mesh that can still be read (its current one if it keeps no history)."""
+        self._alive(ref)
+        with self._guard(f"could not read the history of mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            current, kept_from, keep = self._history_row(ref)
+        return kept_from if keep else current
 
     def revisions(self, ref: MeshRef, limit: int | None = None, *, newest_first: bool = True) -> list[tuple]:
         """The kept revisions ``>= 1``: ``(number, committed_at, message, changes JSON or None, action, target)``.
@@ -815,9 +869,7 @@ class Session:
         with self._guard(f"could not read the history of mesh {ref.name!r}"):
             if self._uows:
                 self._flush()
-            with read_snapshot(self._conn):
-                for r in (a, b) if check else ():
-                    self._kept(ref, r)
+            with read_snapshot(self._conn), self._kept_during(ref, (a, b) if check else (), self._conn):
                 lo, hi = min(a, b), max(a, b)
                 values = {"m": ref.id, "lo": lo, "hi": hi}
                 values.update({f"s_{n}": v for n, v in self._counters_after(ref, lo).items()})
@@ -825,10 +877,13 @@ class Session:
                 out = {}
                 for table in schema.VERSIONED:
                     whole = table is schema.properties or lo == 0
-                    stmt = self.statements.get(
-                        ("versions", table.name, whole), lambda t=table, w=whole: changed_rows(t, w), prepare=False
-                    )
-                    rows = [stmt.rows(self._cur, {**values, "r": r}) if r else [] for r in (a, b)]
+                    rows = []
+                    for r in (a, b):
+                        side = "whole" if whole else "before" if r == lo else "after"
+                        stmt = self.statements.get(
+                            ("versions", table.name, side), lambda t=table, s=side: changed_rows(t, s), prepare=False
+                        )
+                        rows.append(stmt.rows(self._cur, {**values, "r": r}) if r else [])
                     out[table.name] = (rows[0], rows[1])
                 return out
 
@@ -949,11 +1004,16 @@ class Session:
         return oldest
 
     @contextmanager
-    def traced(self, callback: Callable[[str], object]) -> Iterator[None]:
-        """Call ``callback(sql)`` for every statement the session sends on its cursor (benchmarks, tests)."""
+    def traced(self, callback: Callable[..., object], *, parameters: bool = False) -> Iterator[None]:
+        """Call ``callback(sql)`` for every statement the session sends on its cursor (benchmarks, tests).
+
+        With ``parameters``, ``callback(sql, parameters)``: the driver's
+        parameters as sent (a sequence of rows for ``executemany``), so that
+        a statement can be run again, under ``EXPLAIN`` say.
+        """
         self.check()
         plain = self._cur
-        self._cur = _TracingCursor(plain, callback)
+        self._cur = _TracingCursor(plain, callback, parameters)
         try:
             yield
         finally:
