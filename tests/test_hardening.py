@@ -11,26 +11,34 @@ exception escaping (a database-level problem is a `StoreError` whose
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import sqlite3
 import threading
 import time
+from decimal import Decimal
+from fractions import Fraction
 
 import numpy as np
 import pytest
 import sqlalchemy as sa
 
 import hestore
-from hestore import urls
+from hestore import graphio, urls
+from hestore import io as mesh_io
 from hestore.errors import (
     ElementNotFoundError,
     HestoreError,
     InvalidInputError,
     MeshNotFoundError,
+    PropertyNotFoundError,
+    RevisionNotFoundError,
     StoreBusyError,
     StoreError,
     TopologyError,
     WrongThreadError,
+    shown,
 )
 
 from helpers import dump
@@ -545,3 +553,462 @@ def test_every_error_is_a_hestore_error(store):
         with pytest.raises(HestoreError):
             misuse()
     assert dump(store) == before
+
+
+# --------------------------------------------------------------------------
+# Every kind of value, at every entry point that converts one
+#
+# One test per kind of conversion (numbers, integers, flags, options, texts
+# and names, sequences, dtypes, paths, progress callbacks): every public entry
+# point that takes such a value is handed every hostile value of the kind, and
+# must refuse each with a typed error — never Python's own (an OverflowError
+# of float(10**400), a ValueError of a NUL in a path), never the driver's (a
+# StoreError for an argument) — and store nothing.
+
+
+class Hostile:
+    """A caller's object whose every conversion raises, its repr included."""
+
+    def __float__(self):
+        raise RuntimeError("no float")
+
+    def __int__(self):
+        raise RuntimeError("no int")
+
+    def __index__(self):
+        raise RuntimeError("no index")
+
+    def __eq__(self, other):
+        raise RuntimeError("no eq")
+
+    def __hash__(self):
+        return 0
+
+    def __len__(self):
+        raise RuntimeError("no len")
+
+    def __iter__(self):
+        raise RuntimeError("no iter")
+
+    def __fspath__(self):
+        raise RuntimeError("no fspath")
+
+    def __repr__(self):
+        raise RuntimeError("no repr")
+
+
+#: Values that are no real number (None is left out: for a property value it means "unset").
+NOT_REALS = ["1", b"1", True, np.bool_(False), complex(1, 1), Decimal("1.5"), [1.0], object(), Hostile()]
+#: Real numbers a float64 cannot hold.
+BEYOND_FLOATS = [10**400, -(10**400), Fraction(10**400), 10**5000]
+NOT_FINITE = [math.nan, math.inf, -math.inf, np.float64("nan")]
+NOT_INTEGERS = [1.0, np.float32(2), Fraction(1, 1), "1", b"1", None, True, np.bool_(True), complex(1, 0),
+                Decimal(1), [1], Hostile()]
+BEYOND_64_BITS = [2**63, -(2**63) - 1, 2**64, np.uint64(2**64 - 1), 10**400, -(10**400), 10**5000]
+NOT_FLAGS = [1, 0, 1.0, "True", "", None, [True], np.array(True), Hostile()]
+NOT_CHOICES = [None, 1, b"vertex", ["vertex"], ("vertex",), "VERTEX", "vertex\x00", "\ud800", "x" * 100_000,
+               10**5000, Hostile()]
+NOT_TEXTS = [1, b"text", ["text"], "a\x00b", "\ud800", 10**5000, Hostile()]
+NOT_NAMES = [None, *NOT_TEXTS, "", "   ", "tab\tname", "x" * 256]
+NOT_PATHS = [None, 42, 1.5, ["a.off"], "a\x00b.off", b"a\x00b.off", "a\ud800.off", 10**5000, Hostile()]
+NOT_CALLABLES = [1, "progress", b"progress", [print], 10**5000, Hostile()]
+NOT_POSITIONS = ["xyz", b"xyz", {0: 1, 1: 2, 2: 3}, {1.0, 2.0, 3.0}, 5.0, np.array(1.0), (1, 2), (1, 2, 3, 4),
+                 Hostile(), *((0.0, x, 0.0) for x in [None, *NOT_REALS, *BEYOND_FLOATS, *NOT_FINITE])]
+
+
+def refused(label: str, call, value, error: type[BaseException] | tuple = InvalidInputError) -> BaseException:
+    """``call(value)`` raises ``error``, a hestore error that is no StoreError; return it."""
+    try:
+        call(value)
+    except error as exc:
+        assert isinstance(exc, HestoreError) and not isinstance(exc, StoreError), f"{label}: {exc!r}"
+        str(exc)  # the message itself can be made
+        return exc
+    except Exception as exc:  # noqa: BLE001 - reported: the point of the test
+        pytest.fail(f"{label} with {shown(value)} raised {type(exc).__module__}.{type(exc).__name__}: {exc}")
+    pytest.fail(f"{label} accepted {shown(value)}")
+
+
+def refuses_all(store, calls: dict, values: list, error: type[BaseException] | tuple = InvalidInputError) -> None:
+    """Every call refuses every value with ``error``, and the database is as it was."""
+    before = dump(store)
+    for label, call in calls.items():
+        for value in values:
+            refused(label, call, value, error)
+    assert dump(store) == before
+
+
+@pytest.fixture
+def files(tmp_path):
+    """A folder for the files a test writes (SQLite's database is in ``tmp_path`` itself)."""
+    folder = tmp_path / "files"
+    folder.mkdir()
+    return folder
+
+
+@pytest.fixture
+def triangle_mesh(store):
+    """A triangle with a float64, an int64, a bool, a str and a float64 (3,) vertex property."""
+    mesh = store.create_mesh("m")
+    corners, p = triangle(mesh)
+    for name, dtype, shape in [("f", "float64", ()), ("i", "int64", ()), ("b", "bool", ()), ("s", "str", ()),
+                               ("f3", "float64", (3,))]:
+        mesh.add_property("vertex", name, dtype, shape=shape)
+    return mesh, corners, p
+
+
+@pytest.mark.parametrize("big", [10**400, Fraction(10**400)], ids=["int", "fraction"])
+def test_a_number_too_large_for_a_float_is_invalid_input(store, triangle_mesh, big):
+    # Was OverflowError ("int too large to convert to float") from float() in the value and position checks.
+    mesh, (a, b, _c), p = triangle_mesh
+    e = mesh.find_halfedge(a, b).edge
+    calls = {
+        "v['f'] = x": lambda x: a.__setitem__("f", x),
+        "set_property_array": lambda x: mesh.set_property_array("vertex", "f", [a], np.array([x], dtype=object)),
+        "add_property(default=x)": lambda x: mesh.add_property("vertex", "d", "float64", default=x),
+        "add_vertex": lambda x: mesh.add_vertex((x, 0, 0)),
+        "set_position": lambda x: mesh.set_position(a, (0, x, 0)),
+        "set_positions": lambda x: mesh.set_positions([a], np.array([(0, 0, x)], dtype=object)),
+        "split_edge(position=x)": lambda x: mesh.split_edge(e, position=(x, 0, 0)),
+        "poke_polygon(position=x)": lambda x: mesh.poke_polygon(p, position=(x, 0, 0)),
+    }
+    refuses_all(store, calls, [big])
+
+
+def test_a_nul_in_a_path_is_invalid_input_naming_the_path(store, triangle_mesh, files):
+    # Was ValueError ("embedded null byte") from the OS call.
+    mesh, _corners, _p = triangle_mesh
+    graph = mesh.to_networkx()
+    calls = {
+        ".ply": mesh.export,
+        ".stl": mesh.export,
+        ".off": store.import_file,
+        ".png": mesh.render,
+        ".graphml": lambda x: graphio.write_graph(graph, x),
+    }
+    before = dump(store)
+    for suffix, call in calls.items():
+        for path in (f"a\x00b{suffix}", f"a\x00b{suffix}".encode(), files / f"a\x00b{suffix}"):
+            assert "a\\x00b" in str(refused(f"{suffix} to {path!r}", call, path))
+    assert dump(store) == before and os.listdir(files) == []
+
+
+def test_numbers_beyond_float64_and_non_numbers_are_refused_as_values(store, triangle_mesh):
+    mesh, (a, b, _c), _p = triangle_mesh
+    calls = {
+        "v['f'] = x": lambda x: a.__setitem__("f", x),
+        "v['f3'] = (x, 0, 0)": lambda x: a.__setitem__("f3", (x, 0, 0)),
+        "set_property_array(..., [x])": lambda x: mesh.set_property_array("vertex", "f", [a], [x]),
+        "add_property(default=x)": lambda x: mesh.add_property("vertex", "d", "float64", default=x),
+        "add_property(shape=(2,), default=(x, 0))": lambda x: mesh.add_property(
+            "vertex", "d", "float64", shape=(2,), default=(x, 0)
+        ),
+        "v['i'] = x": lambda x: a.__setitem__("i", x),
+    }
+    refuses_all(store, calls, NOT_REALS + BEYOND_FLOATS)
+    refuses_all(store, {"v['i'] = x": lambda x: a.__setitem__("i", x)}, [1.5, math.nan, math.inf, 2**63, 2**64])
+
+
+def test_coordinates_are_finite_real_numbers_everywhere(store, triangle_mesh):
+    mesh, (a, b, _c), p = triangle_mesh
+    e = mesh.find_halfedge(a, b).edge
+    calls = {
+        "add_vertex": lambda x: mesh.add_vertex((0, 0, x)),
+        "set_position": lambda x: mesh.set_position(a, (x, 0, 0)),
+        "split_edge(position=)": lambda x: mesh.split_edge(e, position=(0, 0, x)),
+        "poke_polygon(position=)": lambda x: mesh.poke_polygon(p, position=(x, 0, 0)),
+        "plot(view=(x, 0))": lambda x: mesh.plot(view=(x, 0)),
+        "open(busy_timeout=x)": lambda x: hestore.open("sqlite://", busy_timeout=x),
+    }
+    refuses_all(store, calls, [None, *NOT_REALS, *BEYOND_FLOATS, *NOT_FINITE])
+    # Arrays are numpy's to convert: a bool or a Decimal among numbers is a number there (an array of bools is not).
+    arrays = {
+        "set_positions": lambda x: mesh.set_positions([a], [(0, x, 0)]),
+        "import_arrays": lambda x: store.import_arrays("t", [(0, 0, 0), (1, 0, x), (0, 1, 0)], [[0, 1, 2]]),
+    }
+    refuses_all(store, arrays, [None, "1", b"1", complex(1, 1), [1.0], Hostile(), *BEYOND_FLOATS, *NOT_FINITE])
+
+
+def test_real_numbers_of_every_kind_are_taken_exactly(store, triangle_mesh):
+    mesh, (a, b, _c), _p = triangle_mesh
+    a["f"], b["f"] = Fraction(1, 4), np.float32(0.5)
+    a["i"], b["i"] = Fraction(2**53 + 1), np.uint64(7)  # exact: not through a float
+    assert (a["f"], b["f"], a["i"], b["i"]) == (0.25, 0.5, 2**53 + 1, 7)
+    assert mesh.add_vertex((Fraction(1, 2), np.int8(-3), np.float16(2))).position == (0.5, -3.0, 2.0)
+    with hestore.open(store.url, busy_timeout=10**9) as patient:  # PostgreSQL waits its longest: 24.8 days
+        assert patient.meshes() == ["m"]
+
+
+def test_integers_ids_and_revisions_are_typed(store, triangle_mesh):
+    mesh, (a, b, _c), _p = triangle_mesh
+    lookups = {
+        "vertex(x)": mesh.vertex,
+        "halfedge(x)": mesh.halfedge,
+        "edge(x)": mesh.edge,
+        "polygon(x)": mesh.polygon,
+        "Vertex(mesh, x).position": lambda x: hestore.Vertex(mesh, x).position,
+        "set_position(x, ...)": lambda x: mesh.set_position(x, (0, 0, 0)),
+    }
+    refuses_all(store, lookups, NOT_INTEGERS)
+    refuses_all(store, lookups, BEYOND_64_BITS, ElementNotFoundError)
+    arrays = {
+        "set_positions([x], ...)": lambda x: mesh.set_positions([x], [(0, 0, 0)]),
+        "set_property_array(..., [x], ...)": lambda x: mesh.set_property_array("vertex", "f", [x], [1.0]),
+    }
+    refuses_all(store, arrays, NOT_INTEGERS + BEYOND_64_BITS, (InvalidInputError, ElementNotFoundError))
+    revisions = {
+        "at(x)": mesh.at,
+        "diff(x, 1)": lambda x: mesh.diff(x, 1),
+        "diff(1, x)": lambda x: mesh.diff(1, x),
+        "revert(x)": mesh.revert,
+    }
+    refuses_all(store, revisions, NOT_INTEGERS)
+    copy = {"copy_mesh(revision=x)": lambda x: store.copy_mesh("m", "copy", revision=x)}  # None: the current one
+    refuses_all(store, copy, [x for x in NOT_INTEGERS if x is not None])
+    refuses_all(store, {**revisions, **copy}, BEYOND_64_BITS, RevisionNotFoundError)
+    counts = {
+        "k_ring(v, x)": lambda x: mesh.k_ring(a, x),
+        "prune_history(keep=x)": mesh.prune_history,
+        "plot(max_polygons=x)": lambda x: mesh.plot(max_polygons=x),
+        "add_property(shape=(x,))": lambda x: mesh.add_property("vertex", "d", "float64", shape=(x,)),
+    }
+    negative = [-1, -(10**400), -(10**5000)]
+    refuses_all(store, counts, [*NOT_INTEGERS, *negative])
+    limit = [x for x in NOT_INTEGERS if x is not None] + negative + BEYOND_64_BITS[:1]  # None: every revision
+    refuses_all(store, {"history(limit=x)": mesh.history}, limit)
+    # A count beyond anything there is asks for everything there is.
+    assert mesh.k_ring(a, 10**400) == set(mesh.vertices())
+    assert [r.number for r in mesh.history(np.int64(1))] == [mesh.revision]
+
+
+def test_flags_are_true_or_false(store, triangle_mesh, files):
+    mesh, (a, b, _c), _p = triangle_mesh
+    e = mesh.find_halfedge(a, b).edge
+    soup = [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]
+    (files / "t.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    calls = {
+        "split_edge(triangulate=x)": lambda x: mesh.split_edge(e, triangulate=x),
+        "can_split_edge(triangulate=x)": lambda x: mesh.can_split_edge(e, triangulate=x),
+        "export(binary=x)": lambda x: mesh.export(files / "m.ply", binary=x),
+        "render(title=x)": lambda x: mesh.render(files / "m.png", title=x),
+        "plot(labels=x)": lambda x: mesh.plot(labels=x),
+    }
+    for flag in ("allow_loops", "allow_multi_edges", "history"):
+        calls[f"create_mesh({flag}=x)"] = lambda x, flag=flag: store.create_mesh("new", **{flag: x})
+        calls[f"import_arrays({flag}=x)"] = lambda x, flag=flag: store.import_arrays("new", *soup, **{flag: x})
+    for flag in ("replace", "orient"):
+        calls[f"import_file({flag}=x)"] = lambda x, flag=flag: store.import_file(files / "t.off", **{flag: x})
+    refuses_all(store, calls, NOT_FLAGS)
+    # None means something here: unset the value, check when the mesh is small.
+    optional = {"v['b'] = x": lambda x: a.__setitem__("b", x), "plot(check=x)": lambda x: mesh.plot(check=x)}
+    refuses_all(store, optional, [x for x in NOT_FLAGS if x is not None and not isinstance(x, np.ndarray)])
+    a["b"] = np.array(True)  # a 0-d array of a bool is a bool, as for every scalar property
+    assert a["b"] is True
+    assert sorted(os.listdir(files)) == ["t.off"]
+
+
+def test_options_are_one_of_their_strings(store, triangle_mesh, files):
+    mesh, (a, b, _c), _p = triangle_mesh
+    tri = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    (files / "t.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    calls = {
+        "add_property(kind=x)": lambda x: mesh.add_property(x, "d", "float64"),
+        "properties(x)": mesh.properties,
+        "remove_property(x, ...)": lambda x: mesh.remove_property(x, "f"),
+        "property_array(x, ...)": lambda x: mesh.property_array(x, "f"),
+        "set_property_array(x, ...)": lambda x: mesh.set_property_array(x, "f", [0], [1.0]),
+        "to_networkx(kind=x)": mesh.to_networkx,
+        "import_arrays(on_error=x)": lambda x: store.import_arrays("new", tri, [[0, 1, 2]], on_error=x),
+        "import_file(on_error=x)": lambda x: store.import_file(files / "t.off", on_error=x),
+        "plot(labels=x)": lambda x: mesh.plot(labels=x),
+    }
+    refuses_all(store, calls, NOT_CHOICES)
+    # None means something here: count the edges, the default view.
+    optional = {
+        "shortest_path(weight=x)": lambda x: mesh.shortest_path(a, b, weight=x),
+        "plot(view=x)": lambda x: mesh.plot(view=x),
+    }
+    refuses_all(store, optional, [x for x in NOT_CHOICES if x is not None])
+
+
+def test_names_and_texts_are_text_sql_can_hold(store, triangle_mesh, files):
+    mesh, (a, _b, _c), _p = triangle_mesh
+    tri = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    (files / "t.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    names = {
+        "create_mesh(x)": store.create_mesh,
+        "mesh(x)": store.mesh,
+        "delete_mesh(x)": store.delete_mesh,
+        "rename_mesh(m, x)": lambda x: store.rename_mesh("m", x),
+        "copy_mesh(m, x)": lambda x: store.copy_mesh("m", x),
+        "import_arrays(x, ...)": lambda x: store.import_arrays(x, tri, [[0, 1, 2]]),
+        "dual(x)": mesh.dual,
+        "add_property(name=x)": lambda x: mesh.add_property("vertex", x, "float64"),
+    }
+    refuses_all(store, names, NOT_NAMES)
+    # None means something here: the file's name.
+    refuses_all(store, {"import_file(name=x)": lambda x: store.import_file(files / "t.off", x)}, NOT_NAMES[1:])
+    # A name no property can have is one no property has: never a driver's error about it.
+    lookups = {
+        "v[x]": lambda x: a[x],
+        "v[x] = 1.0": lambda x: a.__setitem__(x, 1.0),
+        "del v[x]": lambda x: a.__delitem__(x),
+        "remove_property(vertex, x)": lambda x: mesh.remove_property("vertex", x),
+        "property_array(vertex, x)": lambda x: mesh.property_array("vertex", x),
+        "to_networkx(attrs=[x])": lambda x: mesh.to_networkx(attrs=[x]),
+    }
+    refuses_all(store, lookups, NOT_NAMES, (PropertyNotFoundError, InvalidInputError))
+    texts = {
+        "v['s'] = x": lambda x: a.__setitem__("s", x),
+        "add_property(str, default=x)": lambda x: mesh.add_property("vertex", "d", "str", default=x),
+        "transaction(message=x)": lambda x: _edit_in_a_block(store, mesh, x),
+    }
+    refuses_all(store, texts, NOT_TEXTS)
+
+
+def _edit_in_a_block(store, mesh, message) -> None:
+    with store.transaction(message=message):
+        mesh.add_vertex()
+
+
+def test_sequences_are_refused_when_iterating_them_fails(store, triangle_mesh, files):
+    mesh, (a, b, c), p = triangle_mesh
+    e = mesh.find_halfedge(a, b).edge
+    positions = {
+        "add_vertex(x)": mesh.add_vertex,
+        "set_position(v, x)": lambda x: mesh.set_position(a, x),
+        "split_edge(e, position=x)": lambda x: mesh.split_edge(e, position=x),
+        "poke_polygon(p, position=x)": lambda x: mesh.poke_polygon(p, position=x),
+    }
+    refuses_all(store, positions, NOT_POSITIONS)
+    refuses_all(store, {"v['f3'] = x": lambda x: a.__setitem__("f3", x)}, NOT_POSITIONS[:9])  # NaN is a float64
+    not_iterable = [5, b"abc", np.array(1.0), Hostile(), a]
+    refuses_all(store, {"to_networkx(attrs=x)": lambda x: mesh.to_networkx(attrs=x)}, not_iterable)  # a str: one
+    calls = {
+        "add_polygon(x)": mesh.add_polygon,
+        "can_add_polygon(x)": mesh.can_add_polygon,
+        "to_networkx(vertices=x)": lambda x: mesh.to_networkx(vertices=x),
+        "render(size=x)": lambda x: mesh.render(files / "never.png", size=x),
+        "import_arrays(positions=x)": lambda x: store.import_arrays("new", x, [[0, 1, 2]]),
+        "import_arrays(polygons=x)": lambda x: store.import_arrays("new", [(0, 0, 0)] * 3, x),
+        "set_positions(x, ...)": lambda x: mesh.set_positions(x, [(0, 0, 0)]),
+        "set_positions(..., x)": lambda x: mesh.set_positions([a], x),
+        "set_property_array(..., x)": lambda x: mesh.set_property_array("vertex", "f", [a], x),
+    }
+    refuses_all(store, calls, ["abc", *not_iterable])
+    rows = {
+        "import_arrays(polygons=[[0, 1, x]])": lambda x: store.import_arrays("new", [(0, 0, 0)] * 3, [[0, 1, x]]),
+        "import_arrays(positions=[..., (0, 0, x)])": lambda x: store.import_arrays(
+            "new", [(0, 0, 0), (1, 0, 0), (0, 0, x)], [[0, 1, 2]]
+        ),
+        "add_polygon([a, b, x])": lambda x: mesh.add_polygon([a, b, x]),
+    }
+    refuses_all(store, rows, [Hostile(), 10**5000, "1", None])
+    assert os.listdir(files) == []
+
+
+def test_numpy_dtypes_and_python_types_declare_properties_by_name(store):
+    mesh = store.create_mesh("m")
+    v = mesh.add_vertex()
+    spellings = {
+        "float64": [np.dtype("float64"), np.float64, float, np.dtype(">f8")],
+        "int64": [np.dtype("int64"), np.int64, int],
+        "bool": [np.dtype(bool), np.bool_, bool],
+        "str": [str, np.str_, np.dtype("U"), np.dtype("U8")],
+    }
+    values = {"float64": 1.5, "int64": 7, "bool": True, "str": "seven"}
+    for name, dtypes in spellings.items():
+        for k, dtype in enumerate(dtypes):
+            prop = mesh.add_property("vertex", f"{name}{k}", dtype)
+            assert prop.dtype == name and type(prop.dtype) is str, dtype
+            assert mesh.properties("vertex")[prop.name].dtype == name
+            v[prop.name] = values[name]
+            assert v[prop.name] == values[name]
+            assert mesh.property_array("vertex", prop.name)[1].tolist() == [values[name]]
+
+
+def test_other_dtypes_are_refused_naming_the_four(store, triangle_mesh):
+    mesh, _corners, _p = triangle_mesh
+    others = [None, np.float32, np.dtype("float32"), np.int32, np.dtype(object), object, complex, np.dtype("S"), bytes,
+              "f8", "float", "double", "Float64", ["float64"], 10**5000, Hostile()]
+    before = dump(store)
+    for dtype in others:
+        exc = refused("add_property(dtype=x)", lambda x: mesh.add_property("vertex", "d", x), dtype)
+        assert "float64, int64, bool, str" in str(exc), str(exc)
+    assert dump(store) == before
+
+
+def test_paths_are_checked_before_any_file_is_touched(store, triangle_mesh, files, monkeypatch):
+    monkeypatch.chdir(files)
+    mesh, _corners, _p = triangle_mesh
+    graph = mesh.to_networkx()
+    calls = {
+        "export(x)": mesh.export,
+        "import_file(x)": store.import_file,
+        "render(x)": mesh.render,
+        "write_graph(g, x)": lambda x: graphio.write_graph(graph, x),
+        "hestore.io.read(x)": mesh_io.read,
+    }
+    refuses_all(store, calls, NOT_PATHS)
+    refuses_all(store, {"open(x)": hestore.open}, NOT_PATHS[1:])  # None: the default database
+    assert os.listdir(files) == []
+
+
+def test_files_the_system_refuses_are_invalid_input_naming_them(store, triangle_mesh, files):
+    mesh, _corners, _p = triangle_mesh
+    for name in ("folder.off", "folder.stl", "folder.ply"):
+        (files / name).mkdir()
+    graph = mesh.to_networkx()
+    calls = {
+        "import_file(missing)": lambda: store.import_file(files / "missing.off"),
+        "import_file(folder)": lambda: store.import_file(files / "folder.off"),
+        "import_file(folder, meshio)": lambda: store.import_file(files / "folder.stl"),
+        "export(no folder)": lambda: mesh.export(files / "no" / "such" / "m.off"),
+        "export(no folder, meshio)": lambda: mesh.export(files / "no" / "such" / "m.vtk"),
+        "export(onto a folder)": lambda: mesh.export(files / "folder.ply"),
+        "write_graph(no folder)": lambda: graphio.write_graph(graph, files / "no" / "g.graphml"),
+        "io.read(missing)": lambda: mesh_io.read(files / "missing.ply"),
+    }
+    before = dump(store)
+    for label, call in calls.items():
+        exc = refused(label, lambda _: call(), None)
+        assert re.match(f"cannot (read|write) {re.escape(str(files))}/", str(exc)), f"{label}: {exc}"
+        assert isinstance(exc.__cause__, OSError), label
+    assert dump(store) == before
+
+
+def test_bytes_and_path_objects_are_paths(store, triangle_mesh, files):
+    mesh, _corners, _p = triangle_mesh
+    mesh.export(os.fsencode(files / "a.off"))
+    assert store.import_file(os.fsencode(files / "a.off"), "a").mesh.counts().polygons == 1
+    mesh.export(files / "b.ply")
+    assert store.import_file(files / "b.ply").mesh.name == "b"
+
+
+def test_progress_is_a_callable(store, triangle_mesh, files):
+    mesh, _corners, _p = triangle_mesh
+    (files / "t.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    calls = {
+        "stats(x)": mesh.stats,
+        "components(x)": mesh.components,
+        "check(x)": mesh.check,
+        "to_networkx(progress=x)": lambda x: mesh.to_networkx(progress=x),
+        "export(progress=x)": lambda x: mesh.export(files / "m.off", progress=x),
+        "render(progress=x)": lambda x: mesh.render(files / "m.png", progress=x),
+        "plot(progress=x)": lambda x: mesh.plot(progress=x),
+        "import_arrays(progress=x)": lambda x: store.import_arrays("new", [(0, 0, 0)] * 3, [[0, 1, 2]], progress=x),
+        "import_file(progress=x)": lambda x: store.import_file(files / "t.off", progress=x),
+    }
+    refuses_all(store, calls, NOT_CALLABLES)
+    assert sorted(os.listdir(files)) == ["t.off"]
+
+
+def test_render_sizes_are_whole_pixels_within_bounds(store, triangle_mesh, files):
+    mesh, _corners, _p = triangle_mesh
+    calls = {
+        "render(size=(x, 10))": lambda x: mesh.render(files / "m.png", size=(x, 10)),
+        "render(dpi=x)": lambda x: mesh.render(files / "m.png", dpi=x),
+    }
+    refuses_all(store, calls, [*NOT_INTEGERS, *BEYOND_64_BITS, 0, -1, 10**6])
+    refused("render(dpi=5)", lambda x: mesh.render(files / "m.png", dpi=x), 5)  # text cannot be drawn
+    assert os.listdir(files) == []

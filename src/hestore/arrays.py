@@ -40,7 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hestore.errors import InvalidInputError, InvariantViolationError, Violation
+from hestore.errors import InvalidInputError, InvariantViolationError, Violation, shown
 
 __all__ = [
     "TopologyArrays",
@@ -178,20 +178,26 @@ def ragged(polygons) -> Ragged:
         try:
             # Rows of one length: one conversion instead of one per polygon.
             whole = np.asarray(polygons)
-        except (TypeError, ValueError):
+        except Exception:  # noqa: BLE001 - ragged rows, or items whose own conversions raise: taken row by row
             whole = None
         if whole is not None and whole.ndim == 2 and whole.dtype.kind in "iuf":
             return ragged(whole)
+    try:
+        given = list(polygons)
+    except Exception as exc:  # noqa: BLE001 - a 0-d array, or the caller's __iter__, may raise anything
+        raise InvalidInputError(f"{what}; iterating over them raised {type(exc).__name__}: {exc}") from exc
     rows = []
-    for i, p in enumerate(polygons):
+    for i, p in enumerate(given):
         if isinstance(p, (str, bytes, dict)) or not hasattr(p, "__len__"):
-            raise InvalidInputError(f"{what}; polygon {i} is {p!r}, not a sequence of vertex indices")
+            raise InvalidInputError(f"{what}; polygon {i} is {shown(p)}, not a sequence of vertex indices")
         try:
             row = np.asarray(p)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"{what}; polygon {i} is not a flat sequence of vertex indices: {p!r}") from None
+        except Exception:  # noqa: BLE001 - ragged, or items whose own conversions raise
+            raise InvalidInputError(
+                f"{what}; polygon {i} is not a flat sequence of vertex indices: {shown(p)}"
+            ) from None
         if row.ndim != 1 or row.dtype == object:
-            raise InvalidInputError(f"{what}; polygon {i} is not a flat sequence of vertex indices: {p!r}")
+            raise InvalidInputError(f"{what}; polygon {i} is not a flat sequence of vertex indices: {shown(p)}")
         rows.append(row)
     lengths = np.fromiter((len(r) for r in rows), dtype=I64, count=len(rows))
     offsets = np.zeros(len(rows) + 1, dtype=I64)
@@ -216,7 +222,7 @@ def _as_indices(a) -> np.ndarray:
         if integral.all():
             return a.astype(I64)
     raise InvalidInputError(
-        f"polygon vertex indices must be integers, got {a.dtype} values such as {a.reshape(-1)[:3].tolist()}"
+        f"polygon vertex indices must be integers, got {a.dtype} values such as {shown(a.reshape(-1)[:3].tolist())}"
     )
 
 

@@ -49,7 +49,9 @@ from hestore.arrays import (
 )
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, MeshExistsError, NonOrientableError, TopologyError
+from hestore.progress import check_progress
 from hestore.unitofwork import BulkRows, BulkValues
+from hestore.urls import check_path
 from hestore.values import Property
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -169,23 +171,16 @@ class MeshArrays(NamedTuple):
     vertex_ids: np.ndarray
 
 
-def _check_on_error(on_error: str) -> None:
-    if on_error not in ON_ERROR:
-        raise InvalidInputError(f"on_error must be 'raise', 'skip' or 'split', not {on_error!r}")
-
-
 def _as_positions(positions) -> np.ndarray:
     what = "positions must be a (V, 3) or (V, 2) array of real numbers"
-    if isinstance(positions, (str, bytes, dict, set)) or not hasattr(positions, "__len__"):
-        raise InvalidInputError(f"{what}, not {type(positions).__name__}")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # numpy warns, and drops the imaginary part, for complex values
-            pos = np.asarray(positions)
-            if pos.dtype.kind in "iuO":
+    pos = values.check_arraylike(positions, what)
+    if pos.dtype.kind in "iuO":
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # numpy warns, and drops the imaginary part, for complex values
                 pos = pos.astype(np.float64)
-    except (TypeError, ValueError, Warning):
-        raise InvalidInputError(f"{what}; these are not") from None
+        except Exception:  # noqa: BLE001 - text, complex, ints beyond floats, or the items' own __float__
+            raise InvalidInputError(f"{what}; these are not") from None
     if pos.size == 0:
         return np.zeros((0, 3))
     if pos.dtype.kind != "f":
@@ -294,10 +289,11 @@ def import_arrays(
     >>> report.polygons, report.vertices, report.split
     (2, 6, {0: [4], 1: [5]})
     """
-    _check_on_error(on_error)
-    _check_flags(replace=replace, orient=orient, history=history)
-    if not replace:
-        _check_name(store, name)
+    _check_options(
+        on_error, progress, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, replace=replace,
+        orient=orient, history=history,
+    )
+    name = _check_name(store, name, replace)
     pos, soup = _as_positions(positions), ragged(polygons)
     return _import(
         store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace, orient=orient,
@@ -305,15 +301,20 @@ def import_arrays(
     )
 
 
-def _check_flags(**flags: object) -> None:
-    for name, value in flags.items():
-        if not isinstance(value, bool):
-            raise InvalidInputError(f"{name} is True or False, not {value!r}")
+def _check_options(on_error: object, progress: object, **flags: object) -> None:
+    """The options of an import, checked before anything is read or built."""
+    values.check_choice(on_error, ON_ERROR, "on_error")
+    check_progress(progress)
+    for option, value in flags.items():
+        values.check_flag(value, option)
 
 
-def _check_name(store: "Store", name: str) -> None:
-    if name in store.meshes():
+def _check_name(store: "Store", name: object, replace: bool = False) -> str:
+    """The new mesh's name, checked; unless ``replace``, no mesh may have it."""
+    name = values.check_name(name, "a mesh name")
+    if not replace and name in store.meshes():
         raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
+    return name
 
 
 class FileData(NamedTuple):
@@ -496,7 +497,10 @@ def import_file(
     ------
     InvalidInputError
         The file is malformed (bad header, non-numeric or non-finite values,
-        truncated); the message names the file and line. Nothing is stored.
+        truncated): the message names the file and line. The file cannot be
+        read (missing, a folder, no permission: ``"cannot read {path}:
+        {reason}"``), the path cannot be one, or an option is malformed.
+        Nothing is stored.
 
     Examples
     --------
@@ -508,14 +512,15 @@ def import_file(
     >>> report.mesh.name, report.vertices, report.polygons
     ('tri', 3, 1)
     """
-    _check_on_error(on_error)
-    path = os.fspath(path)
+    _check_options(
+        on_error, progress, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, replace=replace,
+        orient=orient, history=history,
+    )
+    path = check_path(path)
     kind = mesh_io.format_of(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
-    _check_flags(replace=replace, orient=orient, history=history)
-    if not replace:
-        _check_name(store, name)
+    name = _check_name(store, name, replace)
     read_progress = None
     if progress is not None:
         read_progress = lambda done, total: progress("read", done, total)  # noqa: E731
@@ -585,7 +590,8 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
     >>> d.counts(), d.stats().is_closed, d.check()
     (Counts(vertices=4, halfedges=12, edges=6, polygons=4), True, [])
     """
-    _check_name(mesh.store, name)
+    name = _check_name(mesh.store, name)
+    check_progress(progress)
     h, p = schema.halfedges, schema.polygons
     halfedge_columns = [h.c.id, h.c.origin, h.c.prev, h.c.twin, sa.func.coalesce(h.c.polygon, -1)]
     with mesh.session.snapshot(mesh.ref) as snap:
@@ -663,7 +669,9 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     Raises
     ------
     InvalidInputError
-        A vertex has no position, or the extension is not a known format.
+        A vertex has no position, the extension is not a known format, the
+        path cannot be one, or the file cannot be written (``"cannot write
+        {path}: {reason}"``).
 
     Examples
     --------
@@ -675,7 +683,10 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     >>> store.import_file(path, "again").mesh.to_arrays().polygons.tolist()
     [[0, 1, 2]]
     """
+    path = check_path(path)
     mesh_io.format_of(path)
+    binary = values.check_flag(binary, "binary")
+    check_progress(progress)
     if progress is not None:
         progress("read", 0, 1)
     with mesh.session.snapshot(mesh.ref):  # one state for the topology and every property read

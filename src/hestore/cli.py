@@ -981,7 +981,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HestoreError as exc:
         return _error(str(exc))
     except OSError as exc:
-        # A file that import cannot read or export cannot write.
+        # Not a file the library reads or writes (those are InvalidInputError): the standard streams themselves.
         if exc.filename is not None and exc.strerror:
             return _error(f"{os.fsdecode(exc.filename)}: {exc.strerror}")
         return _error(str(exc))

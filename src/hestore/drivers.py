@@ -37,6 +37,7 @@ __all__ = ["make_engine", "is_driver_error", "translate", "guard"]
 
 _BUSY_SQLSTATES = {"55P03", "40P01", "40001"}  # lock_not_available, deadlock, serialization
 _READ_ONLY_SQLSTATES = {"25006"}  # read_only_sql_transaction
+_LOCK_TIMEOUT_MAX_MS = 2**31 - 1  # PostgreSQL's lock_timeout is an int of milliseconds
 
 
 def make_engine(
@@ -52,7 +53,8 @@ def make_engine(
     SQLite files get WAL (readers never wait for the writer), ``synchronous =
     NORMAL`` (safe in WAL mode) and a 64 MiB page cache; every SQLite
     connection waits ``busy_timeout`` seconds for the writer lock, every
-    PostgreSQL one as long for a row lock (``lock_timeout``). An in-memory
+    PostgreSQL one as long for a row lock (``lock_timeout``, which holds at
+    most about 24.8 days: a longer wait is that long). An in-memory
     SQLite database is one connection shared by the engine.
 
     Raises
@@ -94,7 +96,7 @@ def make_engine(
             cur.close()
 
     else:
-        ms = max(1, int(busy_timeout * 1000))
+        ms = min(max(1, int(busy_timeout * 1000)), _LOCK_TIMEOUT_MAX_MS)
 
         @event.listens_for(engine, "connect")
         def _lock_timeout(dbapi_conn, _record):

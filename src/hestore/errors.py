@@ -31,7 +31,8 @@ Hierarchy::
 `Violation`, the record `Mesh.check` returns and `InvariantViolationError`
 carries, lives here too, so that errors depend on nothing else; so does
 `require`, the import of an optional library that raises
-`MissingDependencyError` when it is missing.
+`MissingDependencyError` when it is missing, and `shown`, how a message
+quotes a caller's value.
 """
 
 from __future__ import annotations
@@ -67,7 +68,11 @@ __all__ = [
     "WrongThreadError",
     "Violation",
     "require",
+    "shown",
 ]
+
+#: How much of a value a message quotes.
+_SHOWN = 60
 
 
 class HestoreError(Exception):
@@ -135,6 +140,29 @@ def require(module: str, extra: str | None = None) -> ModuleType:
         raise MissingDependencyError(
             f'{top} is not installed: pip install "hestore[{extra or top}]" (or pip install {top})'
         ) from exc
+
+
+def shown(value: object) -> str:
+    """``value`` as a message quotes it: its ``repr``, cut short; never raises.
+
+    A caller's value may be anything: an int whose decimal form Python
+    refuses to build (over 4300 digits), an object whose ``__repr__`` raises.
+    A refusal must still say what it refused.
+
+    Examples
+    --------
+    >>> shown("abc"), shown(2**70), shown(10**400)
+    ("'abc'", '1180591620717411303424', 'an int of 1329 bits')
+    >>> shown(list(range(30)))
+    '[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16,... (110 characters)'
+    """
+    if isinstance(value, int) and value.bit_length() > 3 * _SHOWN:
+        return f"an int of {value.bit_length()} bits"
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - a caller's __repr__ may raise anything; the message must not
+        return f"a {type(value).__name__} that cannot be shown"
+    return text if len(text) <= _SHOWN else f"{text[:_SHOWN - 2]}... ({len(text)} characters)"
 
 
 class InvalidInputError(HestoreError, ValueError):

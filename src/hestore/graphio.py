@@ -29,6 +29,8 @@ from typing import Callable
 import networkx as nx
 
 from hestore.errors import InvalidInputError
+from hestore.io import file_errors
+from hestore.urls import check_path
 
 __all__ = ["FORMATS", "format_of", "write_graph"]
 
@@ -47,12 +49,12 @@ def format_of(path: str | os.PathLike) -> str:
     >>> format_of("g.GraphML")
     '.graphml'
     """
-    suffix = os.path.splitext(os.fspath(path))[1].lower()
+    path = check_path(path)
+    suffix = os.path.splitext(path)[1].lower()
     if suffix not in FORMATS:
         what = repr(suffix) if suffix else "(no extension)"
         raise InvalidInputError(
-            f"{os.fspath(path)}: unsupported graph file format {what}; "
-            "write .graphml (GraphML) or .edgelist (an edge list)"
+            f"{path}: unsupported graph file format {what}; write .graphml (GraphML) or .edgelist (an edge list)"
         )
     return suffix
 
@@ -128,15 +130,17 @@ def write_graph(graph: nx.Graph, path: str | os.PathLike) -> tuple[int, int]:
     Raises
     ------
     InvalidInputError
-        Another extension.
-    OSError
-        The file cannot be written.
+        Another extension, a path that cannot be one, or a file that cannot
+        be written (``"cannot write {path}: {reason}"``).
     """
+    path = check_path(path)
     suffix = format_of(path)
     if suffix == ".graphml":
         copy = _writable_copy(graph, _graphml_value)
-        nx.write_graphml(copy, os.fspath(path))
+        with file_errors(path, "write"):
+            nx.write_graphml(copy, path)
     else:
         copy = _writable_copy(graph, _plain, key="key")
-        nx.write_edgelist(copy, os.fspath(path), data=True)
+        with file_errors(path, "write"):
+            nx.write_edgelist(copy, path, data=True)
     return copy.number_of_nodes(), copy.number_of_edges()

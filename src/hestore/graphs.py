@@ -54,9 +54,9 @@ from hestore import properties as props
 from hestore import schema, traversal
 from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, PropertyNotFoundError
-from hestore.progress import silent
-from hestore.values import Property
+from hestore.errors import InvalidInputError, PropertyNotFoundError, shown
+from hestore.progress import check_progress
+from hestore.values import Property, check_choice, check_items
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -274,9 +274,9 @@ def to_networkx(
     >>> list(S.edges(keys=True, data=True)) == list(H.edges(keys=True, data=True))
     True
     """
-    if kind not in KINDS:
-        raise InvalidInputError(f"unknown graph kind {kind!r}; the kinds are {', '.join(map(repr, KINDS))}")
+    kind = check_choice(kind, KINDS, "a graph kind")
     names = _names(attrs)
+    report = check_progress(progress)
     if vertices is not None:
         if kind == "dual":
             raise InvalidInputError(
@@ -299,7 +299,6 @@ def to_networkx(
         used = len(requests)
         if plan is not None and plan.length and kind == "dual":
             requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
-        report = progress or silent
         report("read", 0, 1)
         columns = snap.columns(requests)
         extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
@@ -473,12 +472,10 @@ def _names(attrs: object) -> tuple[str, ...]:
     if isinstance(attrs, str):
         attrs = [attrs]
     what = "attrs is a list of property names (or 'length')"
-    if isinstance(attrs, (bytes, dict)) or not hasattr(attrs, "__iter__"):
-        raise InvalidInputError(f"{what}, not {type(attrs).__name__} {attrs!r}")
-    names = list(attrs)
+    names = check_items(attrs, what, ordered=False)
     for name in names:
         if not isinstance(name, str):
-            raise InvalidInputError(f"{what}; {name!r} is not a name")
+            raise InvalidInputError(f"{what}; {shown(name)} is not a name")
     return tuple(dict.fromkeys(names))
 
 

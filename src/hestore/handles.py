@@ -15,12 +15,12 @@ in each class's docstring: ``lnext``/``lprev``/``sym``/``org``/``dest``
 
 from __future__ import annotations
 
-import operator
 from typing import TYPE_CHECKING
 
 from hestore import navigation as nav
 from hestore import properties as props
-from hestore.errors import ElementNotFoundError, InvalidInputError
+from hestore.errors import ElementNotFoundError, shown
+from hestore.values import check_integer
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -53,14 +53,9 @@ def element_id(value: object, what: str = "element") -> int:
     """
     if type(value) is int and _ID_MIN <= value <= _ID_MAX:
         return value
-    if isinstance(value, bool):
-        raise InvalidInputError(f"{what} ids are integers, not {value!r}")
-    try:
-        i = operator.index(value)
-    except TypeError:
-        raise InvalidInputError(f"{what} ids are integers, not {type(value).__name__} {value!r}") from None
+    i = check_integer(value, f"the {what} id")
     if not _ID_MIN <= i <= _ID_MAX:
-        raise ElementNotFoundError(f"there is no {what} {i}: ids are 64-bit integers")
+        raise ElementNotFoundError(f"there is no {what} {shown(i)}: ids are 64-bit integers")
     return i
 
 

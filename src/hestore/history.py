@@ -17,21 +17,20 @@ same for every process.
 from __future__ import annotations
 
 import json
-import numbers
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import TYPE_CHECKING
 
 from hestore import schema
-from hestore.errors import InvalidInputError, RevisionNotFoundError
+from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
 from hestore.journal import KINDS
-from hestore.values import property_of, value_of
+from hestore.values import check_integer, check_revision, property_of, value_of
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
 __all__ = [
-    "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of", "revision_number",
+    "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of",
 ]
 
 _ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
@@ -89,13 +88,6 @@ class Diff:
         return any(self.created[k] or self.removed[k] or self.changed[k] for k in KINDS)
 
 
-def revision_number(value, what: str = "revision") -> int:
-    """``value`` as a revision number (any integer, numpy's included), else `InvalidInputError`."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InvalidInputError(f"a {what} is an int, not {type(value).__name__} {value!r}")
-    return int(value)
-
-
 def diff_of(versions: dict) -> Diff:
     """A `Diff` from `hestore.session.Session.versions`'s rows at the two revisions."""
     created, removed, changed = ({k: set() for k in KINDS} for _ in range(3))
@@ -142,7 +134,7 @@ def diff(mesh: "Mesh", a: int, b: int) -> Diff:
     >>> d.changed["vertex"], d.created["vertex"]
     ([2], [])
     """
-    a, b = revision_number(a), revision_number(b)
+    a, b = check_revision(a), check_revision(b)
     return diff_of(mesh.session.versions(mesh.ref, a, b))
 
 
@@ -167,9 +159,9 @@ def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
     [(1, 'two vertices', 2)]
     """
     if limit is not None:
-        limit = revision_number(limit, "limit")
-        if limit < 0:
-            raise InvalidInputError(f"limit must be at least 0, not {limit}")
+        limit = check_integer(limit, "limit")
+        if not 0 <= limit < 2**63:  # SQL takes no count beyond 64 bits
+            raise InvalidInputError(f"limit is a number of revisions from 0 to 2**63 - 1, not {shown(limit)}")
     kept = [
         Revision(int(n), _utc(at), message, changes_of(mesh, int(n), stored))
         for n, at, message, stored, _action, _target in mesh.session.revisions(mesh.ref, limit)
@@ -215,7 +207,7 @@ def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
 
 def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
     """Commit a new revision whose content equals ``mesh.at(revision)``; return its number."""
-    revision = revision_number(revision)
+    revision = check_revision(revision)
     return mesh.session.restore(mesh.ref, revision, message or f"revert to revision {revision}", "revert", revision)
 
 
@@ -247,7 +239,7 @@ def _step(mesh: "Mesh", action: str) -> int:
 
 def prune(mesh: "Mesh", keep: int) -> int:
     """Keep the newest ``keep`` revisions of ``mesh`` (at least 1: the current one); return the oldest kept."""
-    keep = revision_number(keep, "number of revisions to keep")
+    keep = check_integer(keep, "keep")
     if keep < 1:
-        raise InvalidInputError(f"keep must be at least 1 (the current revision), not {keep}")
+        raise InvalidInputError(f"keep must be at least 1 (the current revision), not {shown(keep)}")
     return mesh.session.prune(mesh.ref, keep)

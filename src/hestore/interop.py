@@ -34,6 +34,9 @@ import numpy as np
 
 from hestore import bulk, navigation
 from hestore.errors import InvalidInputError, require
+from hestore.io import file_errors
+from hestore.urls import check_path
+from hestore.values import check_arraylike
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -122,7 +125,7 @@ def import_trimesh(store: "Store", name: str, tm: Any, **options) -> bulk.Import
     """
     if not (hasattr(tm, "vertices") and hasattr(tm, "faces")):
         raise InvalidInputError(f"expected a trimesh.Trimesh, got {type(tm).__name__}")
-    return bulk.import_arrays(store, name, np.asarray(tm.vertices), np.asarray(tm.faces), **options)
+    return bulk.import_arrays(store, name, tm.vertices, tm.faces, **options)
 
 
 def _cells(rows: list[np.ndarray]) -> list[tuple[str, np.ndarray]]:
@@ -154,11 +157,12 @@ def to_meshio(mesh: "Mesh") -> Any:
     return meshio.Mesh(positions, [(kind, cells) for kind, cells in _cells([r for r in rows if len(r) >= 3])])
 
 
-def _soup_of(m: Any, what: str) -> tuple[np.ndarray, list]:
+def _soup_of(m: Any, what: str) -> tuple[Any, list]:
     surface, other = [], []
     for block in m.cells:
         if block.type in ("triangle", "quad") or block.type.startswith("polygon"):
-            surface.extend(np.asarray(block.data, dtype=np.int64).tolist())
+            cells = check_arraylike(block.data, f"{what}: {block.type} cells must be rows of indices", np.int64)
+            surface.extend(cells.tolist())
         else:
             other.append(block.type)
     if other:
@@ -166,7 +170,7 @@ def _soup_of(m: Any, what: str) -> tuple[np.ndarray, list]:
             f"{what} has cells that are not polygons ({', '.join(sorted(set(other)))}): hestore stores surfaces "
             f"and graphs of polygons; nothing was stored"
         )
-    return np.asarray(m.points, dtype=float), surface
+    return m.points, surface
 
 
 def import_meshio(store: "Store", name: str, m: Any, **options) -> bulk.ImportReport:
@@ -189,11 +193,11 @@ def import_meshio(store: "Store", name: str, m: Any, **options) -> bulk.ImportRe
 def read_meshio_file(store: "Store", path, name: str | None = None, **options) -> bulk.ImportReport:
     """Import an STL, VTK or VTU file through meshio (`hestore.Store.import_file` for those extensions)."""
     meshio = require("meshio")
-    path = os.fspath(path)
+    path = check_path(path)
     if name is None:
         name = os.path.splitext(os.path.basename(path))[0]
-    if not os.path.isfile(path):
-        raise FileNotFoundError(2, "No such file or directory", path)
+    with file_errors(path, "read"), open(path, "rb"):
+        pass  # the system's own reason (missing, a folder, no permission), not meshio's guess
     said = io.StringIO()
     try:
         # meshio prints its complaints and calls sys.exit on a file it cannot
@@ -212,11 +216,12 @@ def read_meshio_file(store: "Store", path, name: str | None = None, **options) -
 def write_meshio_file(mesh: "Mesh", path) -> None:
     """Write an STL (triangles: polygons cut into fans), VTK or VTU file through meshio."""
     meshio = require("meshio")
-    path = os.fspath(path)
+    path = check_path(path)
     if path.lower().endswith(".stl"):
         positions, rows, ids, _vertex_ids = _polygons(mesh)
         faces, _owner = _fans(rows, ids)
         m = meshio.Mesh(positions, [("triangle", faces)])
     else:
         m = to_meshio(mesh)
-    meshio.write(path, m)
+    with file_errors(path, "write"):
+        meshio.write(path, m)

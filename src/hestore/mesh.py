@@ -12,7 +12,6 @@ identity (`hestore.session.MeshRef`) and policy.
 
 from __future__ import annotations
 
-import os
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
@@ -32,6 +31,7 @@ from hestore import (
     summary,
     traversal,
     validation,
+    values,
 )
 from hestore.errors import (
     ElementNotFoundError,
@@ -40,11 +40,13 @@ from hestore.errors import (
     ReadOnlyError,
     TopologyError,
     Violation,
+    shown,
 )
 from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
 from hestore.values import Property
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
+from hestore.urls import check_path
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -154,7 +156,7 @@ class Mesh:
     def _own(self, handle: object, kind: type, what: str = "") -> int:
         if not isinstance(handle, kind):
             raise InvalidInputError(
-                f"expected a {kind.__name__} handle{what}, got {type(handle).__name__} {handle!r}"
+                f"expected a {kind.__name__} handle{what}, got {type(handle).__name__} {shown(handle)}"
             )
         if handle.mesh != self:
             raise ElementNotFoundError(
@@ -221,7 +223,7 @@ class Mesh:
         (0, 1, 0)
         """
         base = self.ref.base or self.ref
-        number = history.revision_number(revision)
+        number = values.check_revision(revision)
         return Mesh(self.store, self.session.view(base, number), self.allow_loops, self.allow_multi_edges)
 
     def history(self, limit: int | None = None) -> list[history.Revision]:
@@ -434,9 +436,7 @@ class Mesh:
         return self._can(kernel.add_edge, *self._edge_ends(a, b))
 
     def _loop_ids(self, loop: Sequence) -> tuple[str, list[int]]:
-        if isinstance(loop, (str, bytes, dict, Handle)) or not hasattr(loop, "__iter__"):
-            raise InvalidInputError(f"a polygon is a sequence of Vertex or of HalfEdge handles, not {loop!r}")
-        items = list(loop)
+        items = values.check_items(loop, "a polygon is a sequence of Vertex or of HalfEdge handles")
         if not items:
             raise InvalidInputError("a polygon needs at least one vertex or half-edge")
         kind = type(items[0])
@@ -574,7 +574,7 @@ class Mesh:
             return "vertex", self._own(x, Vertex)
         if isinstance(x, HalfEdge):
             return "halfedge", self._own(x, HalfEdge)
-        raise InvalidInputError(f"{name} is a corner: a Vertex or a HalfEdge handle, not {type(x).__name__} {x!r}")
+        raise InvalidInputError(f"{name} is a corner: a Vertex or a HalfEdge handle, not {type(x).__name__} {shown(x)}")
 
     def split_edge(self, e: Edge, position=None, *, triangulate: bool = False) -> Vertex:
         """Put a new vertex on an edge; each polygon beside it gains that corner.
@@ -611,8 +611,7 @@ class Mesh:
         """
         ie = self._own(e, Edge)
         xyz = properties.check_position(position)
-        if not isinstance(triangulate, bool):
-            raise InvalidInputError(f"triangulate is True or False, not {triangulate!r}")
+        triangulate = values.check_flag(triangulate, "triangulate")
         with self._edit() as uow:
             return Vertex(self, euler.split_edge(uow, ie, xyz, triangulate))
 
@@ -622,8 +621,7 @@ class Mesh:
         Only a mesh that forbids parallel edges refuses a split: of a loop,
         or with ``triangulate`` where a cut would double an edge.
         """
-        if not isinstance(triangulate, bool):
-            raise InvalidInputError(f"triangulate is True or False, not {triangulate!r}")
+        triangulate = values.check_flag(triangulate, "triangulate")
         return self._can(euler.check_split_edge, self._own(e, Edge), triangulate)
 
     def split_polygon(self, p: Polygon, a: Vertex | HalfEdge, b: Vertex | HalfEdge) -> Edge:
@@ -984,7 +982,7 @@ class Mesh:
 
         ``ids`` are ids, or handles of the kind.
         """
-        cls = _KIND_OF.get(kind, Handle)
+        cls = _KIND_OF.get(kind, Handle) if isinstance(kind, str) else Handle  # a bad kind is the callee's to refuse
         properties.set_property_array(self, kind, name, self._elements(ids, cls), values)
 
     # -- graph views and bulk export -------------------------------------------
@@ -1039,11 +1037,8 @@ class Mesh:
 
     def _vertex_ids(self, vertices: object, what: str) -> list[int]:
         """The ids of an iterable of `Vertex` handles of this mesh."""
-        if isinstance(vertices, (str, bytes, dict, Handle)) or not hasattr(vertices, "__iter__"):
-            raise InvalidInputError(
-                f"{what} is an iterable of Vertex handles, not {type(vertices).__name__} {vertices!r}"
-            )
-        return [self._own(v, Vertex, f" in {what}") for v in vertices]
+        items = values.check_items(vertices, f"{what} is an iterable of Vertex handles", ordered=False)
+        return [self._own(v, Vertex, f" in {what}") for v in items]
 
     # -- local graph queries ----------------------------------------------------
 
@@ -1113,7 +1108,8 @@ class Mesh:
         STL holds triangles only: other polygons are written as fans
         (`hestore.interop.write_meshio_file`).
         """
-        if str(os.fspath(path)).lower().endswith(interop.MESHIO_EXTENSIONS):
+        path = check_path(path)
+        if path.lower().endswith(interop.MESHIO_EXTENSIONS):
             interop.write_meshio_file(self, path)
             return
         bulk.export(self, path, **options)

@@ -1,9 +1,10 @@
 """Progress on a terminal: one reusable bar for long operations.
 
 This module owns `ProgressBar`, the ``progress(stage, done, total)``
-callable that long library calls (imports, exports) accept. The command line
-passes one for every long command; a program can pass its own, or any
-callable with that signature.
+callable that long library calls (imports, exports) accept, and
+`check_progress`, the check every such call makes of the one it is given.
+The command line passes one for every long command; a program can pass its
+own, or any callable with that signature.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ import time
 from collections.abc import Callable
 from typing import TextIO
 
-__all__ = ["ProgressBar", "silent"]
+from hestore.errors import InvalidInputError
+
+__all__ = ["ProgressBar", "silent", "check_progress"]
 
 
 def _isatty(stream: TextIO) -> bool:
@@ -57,6 +60,31 @@ def silent(stage: str, done: int, total: int) -> None:
 
     >>> silent("read", 1, 2)
     """
+
+
+def check_progress(progress: object) -> Callable:
+    """What a long call reports to: ``progress`` if it is callable, `silent` for None.
+
+    Checked before the call does anything, so that a wrong argument is not
+    found only at the first report, half-way through; and never asked for
+    its truth value, which a callable object may refuse.
+
+    Examples
+    --------
+    >>> check_progress(None) is silent, check_progress(print) is print
+    (True, True)
+    >>> check_progress("bar")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: progress is a callable progress(stage, done, total) or None, not str
+    """
+    if progress is None:
+        return silent
+    if callable(progress):
+        return progress
+    raise InvalidInputError(
+        f"progress is a callable progress(stage, done, total) or None, not {type(progress).__name__}"
+    )
 
 
 class ProgressBar:

@@ -19,14 +19,13 @@ write that the flush turns into one statement per batch.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema, values
-from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError
+from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError, shown
 from hestore.unitofwork import UNSET, BulkValues
 from hestore.values import KINDS, Property
 
@@ -59,13 +58,11 @@ def element_table(kind: str) -> sa.Table:
 
 
 def _kind(kind: object) -> str:
-    if kind not in KINDS:
-        raise InvalidInputError(f"element kinds are {', '.join(KINDS)}, not {kind!r}")
-    return kind  # type: ignore[return-value]
+    return values.check_choice(kind, KINDS, "an element kind")
 
 
 def _missing(mesh: "Mesh", kind: str, name: object) -> PropertyNotFoundError:
-    return PropertyNotFoundError(f"mesh {mesh.name!r} has no {kind} property named {name!r}")
+    return PropertyNotFoundError(f"mesh {mesh.name!r} has no {kind} property named {shown(name)}")
 
 
 def _declared(mesh: "Mesh", catalogue: dict, kind: str, name: object) -> Property:
@@ -92,7 +89,14 @@ def add_property(
         the half-edge of the polygon whose origin is that corner.
     name : str
         Unique per kind.
-    dtype : {"float64", "int64", "bool", "str"}
+    dtype : {"float64", "int64", "bool", "str"}, or a numpy dtype or type
+        The name, or what numpy users write for it: ``np.dtype("float64")``,
+        ``np.float64`` or ``float`` for ``"float64"``; ``np.dtype("int64")``,
+        ``np.int64`` or ``int`` for ``"int64"``; ``np.dtype(bool)``,
+        ``np.bool_`` or ``bool`` for ``"bool"``; ``str``, ``np.str_`` or a
+        numpy unicode dtype for ``"str"``. Other widths (``float32``),
+        ``object`` and the rest are refused. The returned `Property` (and
+        `properties`) always has the name.
     shape : tuple, default ()
         ``()`` or ``(k,)`` (``float64`` and ``int64`` only).
     default : optional
@@ -111,13 +115,15 @@ def add_property(
 
     Examples
     --------
-    >>> import hestore
+    >>> import hestore, numpy as np
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> v = mesh.add_vertex((0, 0, 0))
     >>> mesh.add_property("vertex", "temperature", "float64", default=0.0)
     Property(kind='vertex', name='temperature', dtype='float64', shape=(), default=0.0)
     >>> v["temperature"]
     0.0
+    >>> mesh.add_property("vertex", "count", np.int64).dtype, mesh.add_property("edge", "seam", bool).dtype
+    ('int64', 'bool')
     """
     kind, name, dtype, shape = values.check_spec(kind, name, dtype, shape)
     spec = Property(kind, name, dtype, shape, None)
@@ -209,8 +215,10 @@ def value(mesh: "Mesh", kind: str, i: int, name: str) -> Any:
         The element does not exist.
     """
     session = mesh.session
-    if not isinstance(name, str):
-        raise _missing(mesh, kind, name)
+    try:
+        values.check_text(name, "a property name")  # what reaches SQL: no name holds a NUL or a lone surrogate
+    except InvalidInputError:
+        raise _missing(mesh, kind, name) from None
     found = session.fetch(mesh.ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
     if not found:
         mesh.revision  # noqa: B018 - a deleted mesh raises MeshNotFoundError, not this
@@ -353,12 +361,7 @@ def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.n
 def _ids(ids: object, kind: str) -> np.ndarray:
     """Element ids from an array of ints, checked: 1-D, int64, no duplicates."""
     what = f"{_WHAT[kind]} ids"
-    if isinstance(ids, (str, bytes, dict, set)) or not hasattr(ids, "__len__"):
-        raise InvalidInputError(f"{what} must be an array of ids or a sequence of handles, not {type(ids).__name__}")
-    try:
-        arr = np.asarray(ids)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{what} must be a 1-D array of integers; these are not") from None
+    arr = values.check_arraylike(ids, f"{what} must be an array of ids or a sequence of handles")
     if arr.size == 0:
         return np.zeros(0, dtype=np.int64)
     if arr.ndim != 1 or arr.dtype.kind not in "iu":
@@ -462,16 +465,12 @@ def check_position(position: object) -> tuple[float, float, float] | None:
     if position is None:
         return None
     what = "a position is three finite numbers (x, y, z)"
-    if isinstance(position, (str, bytes, dict, set)) or not hasattr(position, "__iter__"):
-        raise InvalidInputError(f"{what}, not {type(position).__name__} {position!r}")
-    xyz = tuple(position)
-    if len(xyz) != 3:
-        raise InvalidInputError(f"{what}, not {len(xyz)} values: {position!r}")
-    if not all(isinstance(c, numbers.Real) and not isinstance(c, (bool, np.bool_)) for c in xyz):
-        raise InvalidInputError(f"{what}, not {position!r}")
-    xyz = tuple(float(c) for c in xyz)
+    items = values.check_items(position, what)
+    if len(items) != 3:
+        raise InvalidInputError(f"{what}, not {len(items)} values: {shown(position)}")
+    xyz = tuple(values.check_real(c, f"coordinate {axis} of a position") for axis, c in zip("xyz", items))
     if not all(math.isfinite(c) for c in xyz):
-        raise InvalidInputError(f"{what}, not {position!r}")
+        raise InvalidInputError(f"{what}, not {shown(position)}")
     return xyz  # type: ignore[return-value]
 
 
@@ -512,12 +511,7 @@ def set_positions(mesh: "Mesh", vertices: object, positions: object) -> None:
     """
     ids = _ids(vertices, "vertex")
     what = "positions must be an (n, 3) array of finite numbers"
-    if isinstance(positions, (str, bytes, dict, set)) or not hasattr(positions, "__len__"):
-        raise InvalidInputError(f"{what}, not {type(positions).__name__}")
-    try:
-        xyz = np.asarray(positions)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{what}; these are not") from None
+    xyz = values.check_arraylike(positions, what)
     if xyz.size == 0 and len(ids) == 0:
         xyz = np.zeros((0, 3))
     if xyz.dtype.kind not in "iuf" or xyz.shape != (len(ids), 3):

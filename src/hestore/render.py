@@ -60,13 +60,19 @@ import numpy as np
 from hestore import schema, summary, validation
 from hestore.arrays import Index, cycles, dense, polygon_halfedges, positions as position_array
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, Violation, require
-from hestore.progress import silent
+from hestore.errors import InvalidInputError, Violation, require, shown
+from hestore.io import file_errors
+from hestore.progress import check_progress
+from hestore.urls import check_path
+from hestore.values import check_choice, check_flag, check_integer, check_items, check_real
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
 
-__all__ = ["VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "LABEL_VERTICES", "LAYERS", "plot", "render"]
+__all__ = [
+    "VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "MAX_SIDE", "DPI", "LABEL_VERTICES", "LAYERS", "plot",
+    "render",
+]
 
 #: Named views: the direction from the mesh towards the viewer.
 VIEWS = {
@@ -87,6 +93,12 @@ MAX_POLYGONS = 200_000
 
 #: ``check=None`` runs `Mesh.check` up to this many polygons (it reads the whole mesh a second time).
 CHECK_POLYGONS = 200_000
+
+#: The longest side of a picture `render` draws, in pixels.
+MAX_SIDE = 16_384
+
+#: The dots per inch `render` takes, least and most: below, matplotlib cannot draw small text.
+DPI = (10, 10_000)
 
 #: ``labels=True`` labels at most this many vertices (one text artist each); above, a note says so.
 LABEL_VERTICES = 2_000
@@ -197,14 +209,13 @@ def _toward(view: object) -> np.ndarray:
         if view not in VIEWS:
             raise InvalidInputError(f"unknown view {view!r}: use one of {', '.join(VIEWS)} or (azimuth, elevation)")
         return _unit(np.array(VIEWS[view]))
-    try:
-        azimuth, elevation = (float(a) for a in view)  # type: ignore[union-attr]
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"view must be one of {', '.join(VIEWS)} or (azimuth, elevation) in degrees, not {view!r}"
-        ) from None
+    expected = f"view must be one of {', '.join(VIEWS)} or (azimuth, elevation) in degrees"
+    angles = check_items(view, expected)
+    if len(angles) != 2:
+        raise InvalidInputError(f"{expected}, not {shown(view)}")
+    azimuth, elevation = (check_real(a, "a view angle") for a in angles)
     if not (math.isfinite(azimuth) and math.isfinite(elevation)):
-        raise InvalidInputError(f"view angles must be finite, not {view!r}")
+        raise InvalidInputError(f"view angles must be finite, not {shown(view)}")
     a, e = math.radians(azimuth), math.radians(elevation)
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
@@ -294,7 +305,7 @@ def plot(
     MissingDependencyError
         matplotlib is not installed.
     InvalidInputError
-        ``ax`` is not an Axes, or ``view`` or ``max_polygons`` is malformed.
+        ``ax`` is not an Axes, or ``view``, ``labels``, ``check``, ``max_polygons`` or ``progress`` is malformed.
     RevisionNotFoundError, MeshNotFoundError
         The mesh (or the revision it shows) is gone.
 
@@ -319,12 +330,16 @@ def plot(
 
     if ax is not None and not isinstance(ax, Axes):
         raise InvalidInputError(f"ax must be a matplotlib Axes, not {type(ax).__name__}")
-    if isinstance(max_polygons, bool) or not isinstance(max_polygons, int) or max_polygons < 0:
-        raise InvalidInputError(f"max_polygons must be an int of at least 0, not {max_polygons!r}")
-    if labels not in _LABELS:
-        raise InvalidInputError(f"labels must be True, False, 'vertices', 'halfedges' or 'all', not {labels!r}")
+    if check_integer(max_polygons, "max_polygons") < 0:
+        raise InvalidInputError(f"max_polygons must be an int of at least 0, not {shown(max_polygons)}")
+    if isinstance(labels, str):
+        labels = check_choice(labels, [k for k in _LABELS if isinstance(k, str)], "labels (or True, False)")
+    else:
+        labels = check_flag(labels, "labels (or 'vertices', 'halfedges', 'all')")
+    if check is not None:
+        check = check_flag(check, "check (or None)")
     toward = None if view is None else _toward(view)
-    report = progress or silent
+    report = check_progress(progress)
     report("read", 0, 1)
     scene = _read(mesh)
     report("read", 1, 1)
@@ -648,17 +663,23 @@ def _labels(ax, scene: _Scene, screen, placed, notes: list[str]) -> None:
 # Files
 
 
-def _format(path) -> str:
-    try:
-        text = os.fspath(path)
-    except TypeError:
-        raise InvalidInputError(f"path must be a file path, not {type(path).__name__}") from None
-    suffix = os.path.splitext(os.fsdecode(text))[1].lower()
+def _format(path: str) -> str:
+    suffix = os.path.splitext(path)[1].lower()
     if suffix not in FORMATS:
-        raise InvalidInputError(
-            f"cannot render to {os.fsdecode(text)!r}: the file name must end in {' or '.join(FORMATS)}"
-        )
+        raise InvalidInputError(f"cannot render to {path!r}: the file name must end in {' or '.join(FORMATS)}")
     return FORMATS[suffix]
+
+
+def _pixels(size: object, dpi: object) -> tuple[int, int, int]:
+    """``(width, height, dpi)`` checked: whole pixels, and a dpi at which matplotlib can draw text."""
+    sides = [check_integer(side, "a side of size") for side in check_items(size, "size is (width, height) in pixels")]
+    dots = check_integer(dpi, "dpi")
+    if len(sides) != 2 or not all(1 <= side <= MAX_SIDE for side in sides) or not DPI[0] <= dots <= DPI[1]:
+        raise InvalidInputError(
+            f"size must be (width, height) with each side 1 to {MAX_SIDE:,} pixels, and dpi {DPI[0]} to "
+            f"{DPI[1]:,}; not size={shown(size)}, dpi={shown(dpi)}"
+        )
+    return sides[0], sides[1], dots
 
 
 def _umask() -> int:
@@ -689,9 +710,9 @@ def render(
     path : str or os.PathLike
         Ends in ``.png`` or ``.svg``; its folder must exist.
     size : (int, int)
-        Width and height in pixels (at ``dpi``).
+        Width and height in pixels (at ``dpi``), each 1 to `MAX_SIDE`.
     dpi : int
-        Dots per inch of the figure.
+        Dots per inch of the figure, within `DPI`.
     title : bool
         Name the mesh, its revision and its counts above the picture.
     progress : callable, optional
@@ -721,21 +742,17 @@ def render(
     ...
     hestore.errors.InvalidInputError: cannot render to '...t.jpg': the file name must end in .png or .svg
     """
+    path = check_path(path)
     fmt = _format(path)
-    target = os.path.abspath(os.fsdecode(os.fspath(path)))
+    target = os.path.abspath(path)
     folder = os.path.dirname(target)
     if not os.path.isdir(folder):
         raise InvalidInputError(f"cannot write {target}: the folder {folder} does not exist")
     if os.path.isdir(target):
         raise InvalidInputError(f"cannot write {target}: it is a folder")
-    try:
-        width, height = (int(s) for s in size)
-        if width < 1 or height < 1 or int(dpi) < 1:
-            raise ValueError
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"size must be (width, height) in pixels and dpi positive, not size={size!r}, dpi={dpi!r}"
-        ) from None
+    width, height, dpi = _pixels(size, dpi)
+    title = check_flag(title, "title")
+    report = check_progress(progress)
     _require()
     from matplotlib.figure import Figure
 
@@ -748,20 +765,18 @@ def render(
         counts = mesh.counts()
         figure.suptitle(f"{mesh.name} (revision {mesh.revision}): {counts.vertices:,} vertices, "
                         f"{counts.edges:,} edges, {counts.polygons:,} polygons", fontsize="small")
-    report = progress or silent
     report("write", 0, 1)
     fd, temporary = -1, None
     try:
-        fd, temporary = tempfile.mkstemp(prefix=".hestore-render-", suffix=os.path.splitext(target)[1], dir=folder)
-        # mkstemp makes the file private; the picture gets the mode any new file would get.
-        os.chmod(temporary, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as out:
-            fd = -1
-            figure.savefig(out, format=fmt, dpi=dpi)
-        os.replace(temporary, target)
-        temporary = None
-    except OSError as exc:
-        raise InvalidInputError(f"cannot write {target}: {exc.strerror or exc}") from exc
+        with file_errors(target, "write"):
+            fd, temporary = tempfile.mkstemp(prefix=".hestore-render-", suffix=os.path.splitext(target)[1], dir=folder)
+            # mkstemp makes the file private; the picture gets the mode any new file would get.
+            os.chmod(temporary, 0o666 & ~_umask())
+            with os.fdopen(fd, "wb") as out:
+                fd = -1
+                figure.savefig(out, format=fmt, dpi=dpi)
+            os.replace(temporary, target)
+            temporary = None
     finally:
         if fd >= 0:
             os.close(fd)

@@ -12,16 +12,13 @@ A store belongs to the thread that opened it: open one per thread or process.
 from __future__ import annotations
 
 import math
-import numbers
-import os
-import unicodedata
 from contextlib import contextmanager
 from typing import Iterator
 
 import sqlalchemy as sa
 
-from hestore import bulk, interop, schema, urls
-from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError
+from hestore import bulk, interop, schema, urls, values
+from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, shown
 from hestore.journal import created_changes
 from hestore.mesh import Mesh
 from hestore.session import Session
@@ -30,9 +27,6 @@ __all__ = ["open", "Store", "DEFAULT_URL"]
 
 #: Where `open` goes when given no URL and ``$HESTORE_URL`` is unset.
 DEFAULT_URL = urls.DEFAULT_URL
-
-#: The longest mesh name, in characters.
-MAX_NAME = 255
 
 
 def open(url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -> "Store":
@@ -46,7 +40,8 @@ def open(url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -
         means the same); a bare path is exactly that SQLite file. Default:
         ``$HESTORE_URL``, else ``./hestore.db``.
     busy_timeout : float
-        Seconds to wait for another writer's lock before `StoreBusyError`.
+        Seconds to wait for another writer's lock before `StoreBusyError`
+        (PostgreSQL waits at most about 24.8 days, its longest lock timeout).
 
     Returns
     -------
@@ -55,7 +50,9 @@ def open(url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -
     Raises
     ------
     InvalidInputError
-        Not a URL, or a database hestore does not support (`hestore.urls`).
+        Not a URL or a path, a database hestore does not support
+        (`hestore.urls`), or a ``busy_timeout`` that is not a finite number
+        of seconds ≥ 0.
     StoreError
         The database cannot be opened or used: not a database, unreachable,
         tables of another application in the way, driver not installed.
@@ -76,19 +73,7 @@ def open(url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -
 
 def _checked_name(name: object) -> str:
     """``name`` if it can be a mesh name, else `InvalidInputError` saying why."""
-    if not isinstance(name, str):
-        raise InvalidInputError(f"a mesh name is a string, not {type(name).__name__} {name!r}")
-    if not name.strip():
-        raise InvalidInputError(f"a mesh name needs a visible character, not {name!r}")
-    if len(name) > MAX_NAME:
-        raise InvalidInputError(f"a mesh name has at most {MAX_NAME} characters, not {len(name)}")
-    try:
-        name.encode("utf-8")
-    except UnicodeEncodeError:
-        raise InvalidInputError(f"a mesh name must be valid Unicode text (no lone surrogates): {name!r}") from None
-    if any(unicodedata.category(c) == "Cc" for c in name):
-        raise InvalidInputError(f"a mesh name cannot contain control characters (NUL, newline, ...): {name!r}")
-    return name
+    return values.check_name(name, "a mesh name")
 
 
 class Store:
@@ -108,12 +93,11 @@ class Store:
     """
 
     def __init__(self, url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -> None:
-        if isinstance(busy_timeout, bool) or not (
-            isinstance(busy_timeout, (int, float)) and math.isfinite(busy_timeout) and busy_timeout >= 0
-        ):
-            raise InvalidInputError(f"busy_timeout must be a number of seconds ≥ 0, not {busy_timeout!r}")
+        seconds = values.check_real(busy_timeout, "busy_timeout (seconds)")
+        if not 0 <= seconds < math.inf:
+            raise InvalidInputError(f"busy_timeout must be a number of seconds ≥ 0, not {shown(busy_timeout)}")
         self.url = urls.resolve(url)
-        self.busy_timeout = float(busy_timeout)
+        self.busy_timeout = seconds
         self.session = Session(self.url, busy_timeout=self.busy_timeout)
 
     def __repr__(self) -> str:
@@ -168,6 +152,9 @@ class Store:
         >>> mesh.counts().edges, mesh.revision
         (1, 1)
         """
+        if message is not None:
+            # Checked here, not when the block commits: a message SQL cannot hold would lose every edit.
+            values.check_text(message, "a transaction's message")
         with self.session.transaction(message):
             yield self
 
@@ -209,8 +196,9 @@ class Store:
         Mesh('part')
         """
         name = _checked_name(name)
-        if not isinstance(history, bool):
-            raise InvalidInputError(f"history is True or False, not {history!r}")
+        allow_loops = values.check_flag(allow_loops, "allow_loops")
+        allow_multi_edges = values.check_flag(allow_multi_edges, "allow_multi_edges")
+        history = values.check_flag(history, "history")
         m = schema.meshes
         with self.session.scope() as conn:
             if conn.execute(sa.select(m.c.id).where(m.c.name == name)).first() is not None:
@@ -220,8 +208,8 @@ class Store:
                     m.insert()
                     .values(
                         name=name,
-                        allow_loops=bool(allow_loops),
-                        allow_multi_edges=bool(allow_multi_edges),
+                        allow_loops=allow_loops,
+                        allow_multi_edges=allow_multi_edges,
                         revision=0,
                         next_vertex=0,
                         next_edge=0,
@@ -235,7 +223,7 @@ class Store:
                 # Another connection took the name between the check and the insert.
                 raise MeshExistsError(f"a mesh named {name!r} already exists") from None
             ref = self.session.new_ref(mesh_id, name)
-        return Mesh(self, ref, bool(allow_loops), bool(allow_multi_edges))
+        return Mesh(self, ref, allow_loops, allow_multi_edges)
 
     def mesh(self, name: str) -> Mesh:
         """The mesh called ``name``.
@@ -370,14 +358,14 @@ class Store:
         """
         new_name = _checked_name(new_name)
         source = self.mesh(name)
-        if revision is not None and (isinstance(revision, bool) or not isinstance(revision, numbers.Integral)):
-            raise InvalidInputError(f"a revision is an int, not {type(revision).__name__} {revision!r}")
+        if revision is not None:
+            revision = values.check_revision(revision)
         m = schema.meshes
         with self.session.scope() as conn:
             # Locked: the tables are read by several statements, and must not change between them.
             self.session.lock(source.ref)
             row = conn.execute(sa.select(m).where(m.c.id == source.id)).one()
-            at = row.revision if revision is None else int(revision)
+            at = row.revision if revision is None else revision
             view = self.session.view(source.ref, at)  # checks that the revision is kept
             copy = self.create_mesh(
                 new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges, history=row.history
@@ -422,9 +410,10 @@ class Store:
         The meshio formats (`hestore.interop.read_meshio_file`) take the
         same options; their polygon cells become polygons.
         """
+        path = urls.check_path(path)
         if name is not None:
             name = _checked_name(name)
-        if str(os.fspath(path)).lower().endswith(interop.MESHIO_EXTENSIONS):
+        if path.lower().endswith(interop.MESHIO_EXTENSIONS):
             return interop.read_meshio_file(self, path, name, on_error=on_error, **options)
         return bulk.import_file(self, path, name, on_error=on_error, **options)
 

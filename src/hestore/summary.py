@@ -50,7 +50,7 @@ import sqlalchemy as sa
 from hestore import schema
 from hestore.arrays import Index, component_roots, cycle_positions, cycles, dense, groups
 from hestore.handles import HalfEdge, Vertex
-from hestore.progress import silent
+from hestore.progress import check_progress
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -356,7 +356,7 @@ def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     ({3: 4}, 0, True)
     >>> store.close()
     """
-    report = progress or silent
+    report = check_progress(progress)
     report("read", 0, 1)
     t = _read(mesh, sides=True, links=True)
     report("read", 1, 1)
@@ -502,7 +502,7 @@ def components(mesh: "Mesh", progress: Callable[[str, int, int], object] | None 
     [[0, 3], [1], [2]]
     >>> store.close()
     """
-    report = progress or silent
+    report = check_progress(progress)
     report("read", 0, 1)
     t = _read(mesh, sides=False, links=True)
     report("read", 1, 1)

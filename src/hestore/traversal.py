@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import heapq
 import math
-import operator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
@@ -43,10 +42,12 @@ from hestore.errors import (
     InvariantViolationError,
     NoPathError,
     Violation,
+    shown,
 )
 from hestore.handles import Vertex, wrap
 from hestore.navigation import exists, missing
 from hestore.statements import in_chunks, in_keys, indexed_by, padded
+from hestore.values import check_choice, check_integer
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -197,23 +198,14 @@ def halfedges_among(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
 
 def _order(k: object) -> int:
     """``k`` of `k_ring`: an integer ≥ 0 (a numpy one too), never a bool or a float."""
-    if isinstance(k, bool):
-        raise InvalidInputError(f"k is a number of edges, an integer >= 0, not {k!r}")
-    try:
-        k = operator.index(k)
-    except TypeError:
-        raise InvalidInputError(f"k is a number of edges, an integer >= 0, not {type(k).__name__} {k!r}") from None
+    k = check_integer(k, "k, a number of edges,")
     if k < 0:
-        raise InvalidInputError(f"k is a number of edges, an integer >= 0, not {k}")
+        raise InvalidInputError(f"k is a number of edges, an integer >= 0, not {shown(k)}")
     return k
 
 
 def _weight(weight: object) -> str | None:
-    if weight is None or (isinstance(weight, str) and weight in WEIGHTS):
-        return weight
-    raise InvalidInputError(
-        f"weight is None (count the edges) or 'length' (sum their Euclidean lengths), not {weight!r}"
-    )
+    return None if weight is None else check_choice(weight, WEIGHTS, "weight (None to count the edges)")
 
 
 # --------------------------------------------------------------------------

@@ -1,10 +1,13 @@
-"""Database URLs: which database a store (or the command line) opens, and how it is shown.
+"""Database URLs and file paths: which database a store (or the command line) opens, which file a call reads
+or writes, and how they are shown.
 
 This module owns turning what a user gives — nothing, ``$HESTORE_URL``, a
 SQLAlchemy URL or a bare file path — into the `sqlalchemy.engine.URL` of a
-database hestore supports, and rendering URLs for messages without their
-passwords. Every mistake is an `~hestore.errors.InvalidInputError` that says
-what to write instead:
+database hestore supports, rendering URLs for messages without their
+passwords, and checking every file path a caller gives (`check_path`: a
+database file, a mesh file to import or export, a picture, a graph file).
+Every mistake is an `~hestore.errors.InvalidInputError` that says what to
+write instead:
 
 * a bare path (no ``://``) is exactly that SQLite file — ``?`` and ``#`` in
   it are part of the name, not a query or a fragment;
@@ -12,7 +15,10 @@ what to write instead:
   hestore's bulk paths use); ``postgres://`` (Heroku's spelling, which
   SQLAlchemy does not accept) is refused with that hint;
 * any other database or driver (``mysql://``, ``postgresql+psycopg2://``) is
-  refused in one line, before a driver is imported.
+  refused in one line, before a driver is imported;
+* a path is a str, bytes or `os.PathLike` with no NUL character, that the
+  file system's encoding can write (no lone surrogates): anything else is
+  refused naming it, before a file is touched.
 
 Examples
 --------
@@ -33,7 +39,7 @@ import sqlalchemy as sa
 
 from hestore.errors import InvalidInputError
 
-__all__ = ["DEFAULT_URL", "ENVIRONMENT", "resolve", "shown", "is_memory", "sqlite_path"]
+__all__ = ["DEFAULT_URL", "ENVIRONMENT", "resolve", "check_path", "shown", "is_memory", "sqlite_path"]
 
 #: Where a store goes when given no URL and ``$HESTORE_URL`` is unset.
 DEFAULT_URL = "sqlite:///hestore.db"
@@ -78,15 +84,21 @@ def resolve(url: str | sa.engine.URL | None = None) -> sa.engine.URL:
     """
     if url is None:
         url = os.environ.get(ENVIRONMENT) or DEFAULT_URL
-    if isinstance(url, os.PathLike):
-        url = os.fspath(url)
+    path_object = isinstance(url, os.PathLike)
+    if path_object:
+        url = check_path(url, "a database path")
     if isinstance(url, str):
+        # Not check_path's checks: the drivers take UTF-8 only, and a message must not quote a URL's password.
         if "\x00" in url:
             raise InvalidInputError("a database URL or path cannot contain a NUL character")
+        try:
+            url.encode("utf-8")
+        except UnicodeEncodeError:
+            raise InvalidInputError("a database URL or path must be valid Unicode text (no lone surrogates)") from None
         if not url.strip():
             raise InvalidInputError(f"no database given; use {_EXAMPLES}")
-        if "://" not in url:
-            # A bare path is exactly that file: no query string, no fragment.
+        if path_object or "://" not in url:
+            # A bare path is exactly that file (a path object too, whatever its name): no query, no fragment.
             return sa.engine.URL.create("sqlite", database=url)
         scheme = url.split("://", 1)[0].lower()
         if scheme == "postgres":
@@ -118,6 +130,52 @@ def resolve(url: str | sa.engine.URL | None = None) -> sa.engine.URL:
             f"{' or '.join(drivers)}; write {backend}+{drivers[0]}://..."
         )
     return parsed
+
+
+def check_path(path: object, what: str = "a file path") -> str:
+    """``path`` — a str, bytes or `os.PathLike` — as the str a file call takes, checked.
+
+    Bytes are decoded as `os.fsdecode` does (so every byte string the file
+    system can hold comes back the same). ``what`` names the path in the
+    message.
+
+    Raises
+    ------
+    InvalidInputError
+        ``path`` is none of those, its ``__fspath__`` raised, it contains a
+        NUL character, or it is text no file name can be (a lone surrogate).
+
+    Examples
+    --------
+    >>> import pathlib
+    >>> check_path(pathlib.Path("meshes") / "a.off"), check_path(b"b.ply")
+    ('meshes/a.off', 'b.ply')
+    >>> check_path("a\\x00b.off")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a file path cannot contain a NUL character: 'a\\x00b.off'
+    >>> check_path(42)
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a file path is a str, bytes or os.PathLike, not int
+    """
+    if not isinstance(path, (str, bytes, os.PathLike)):
+        raise InvalidInputError(f"{what} is a str, bytes or os.PathLike, not {type(path).__name__}")
+    try:
+        text = os.fsdecode(os.fspath(path))
+    except Exception as exc:  # noqa: BLE001 - a caller's __fspath__ may raise (or return) anything
+        raise InvalidInputError(
+            f"{what}: os.fspath of the {type(path).__name__} given raised {type(exc).__name__}: {exc}"
+        ) from exc
+    if "\x00" in text:
+        raise InvalidInputError(f"{what} cannot contain a NUL character: {text!r}")
+    try:
+        os.fsencode(text)
+    except UnicodeEncodeError:
+        raise InvalidInputError(
+            f"{what} must be a name the file system can hold (no lone surrogates): {text!r}"
+        ) from None
+    return text
 
 
 def shown(url: str | sa.engine.URL) -> str:

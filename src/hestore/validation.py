@@ -79,7 +79,7 @@ from hestore import schema
 from hestore.arrays import Index, TopologyArrays, cycles, first_per_group
 from hestore.columns import read_columns
 from hestore.errors import InvalidInputError, Violation
-from hestore.progress import silent
+from hestore.progress import check_progress
 
 if TYPE_CHECKING:  # pragma: no cover
     from hestore.mesh import Mesh
@@ -876,7 +876,7 @@ def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     []
     >>> store.close()
     """
-    report = progress or silent
+    report = check_progress(progress)
     with mesh.session.snapshot(mesh.ref) as snap:
         report("read", 0, 1)
         arrays = _arrays(snap.columns(_REQUESTS))

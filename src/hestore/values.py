@@ -1,11 +1,25 @@
-"""Property values: their types, their checks, and their rows in SQL.
+"""A caller's values and property values: their checks, and their rows in SQL.
 
-This module owns the vocabulary of element properties (SPEC §3.2) below the
-mesh: what a `Property` is, which dtypes and shapes exist, how a value or an
-array is checked against a property (strictly: never coerced loosely), and
-how values are laid out as rows of `hestore.schema`'s value tables. It knows
-no database connection; `hestore.persistence` writes the rows it makes and
-`hestore.properties` reads them back through the session.
+This module owns two things below the mesh.
+
+The checks of every value a caller hands a public entry point (SPEC §10):
+`check_real`, `check_integer`, `check_revision`, `check_flag`,
+`check_choice`, `check_text`, `check_name`, `check_items`,
+`check_arraylike` and `check_dtype` turn a number, a revision, a flag, an
+option, a text, a name, a sequence, an array or a dtype into what hestore
+works with — or raise `~hestore.errors.InvalidInputError`, before anything
+is read or written. The caller's own conversions (a ``__float__``,
+``__index__`` or ``__iter__`` that raises, an int too large for a float)
+run inside them, so nothing but a typed error leaves, and messages quote
+values with `hestore.errors.shown`, which never fails. (File paths are
+`hestore.urls.check_path`'s: a bare database path is one.)
+
+The vocabulary of element properties (SPEC §3.2): what a `Property` is,
+which dtypes and shapes exist, how a value or an array is checked against a
+property (strictly: never coerced loosely), and how values are laid out as
+rows of `hestore.schema`'s value tables. It knows no database connection;
+`hestore.persistence` writes the rows it makes and `hestore.properties`
+reads them back through the session.
 
 The layout, one table per stored SQL type::
 
@@ -35,15 +49,28 @@ from __future__ import annotations
 import json
 import math
 import numbers
+import operator
+import unicodedata
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 
 from hestore import schema
-from hestore.errors import InvalidInputError
+from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
 
 __all__ = [
+    "check_real",
+    "check_integer",
+    "check_revision",
+    "check_flag",
+    "check_choice",
+    "check_text",
+    "check_name",
+    "check_items",
+    "check_arraylike",
+    "check_dtype",
+    "MAX_NAME",
     "KINDS",
     "DTYPES",
     "WIDTH",
@@ -80,6 +107,295 @@ _TABLES = {
 }
 _NUMPY = {"float64": np.float64, "int64": np.int64, "bool": np.bool_, "str": object}
 
+#: The longest mesh or property name, in characters.
+MAX_NAME = 255
+#: The numpy scalar types and Python types that name a dtype (`check_dtype`).
+_DTYPE_OF_TYPE = {
+    float: "float64", np.float64: "float64",
+    int: "int64", np.int64: "int64",
+    bool: "bool", np.bool_: "bool",
+    str: "str", np.str_: "str",
+}
+
+
+# --------------------------------------------------------------------------
+# A caller's values
+
+
+def _failed(what: str, value: object, exc: Exception) -> InvalidInputError:
+    """The refusal of a value whose own conversion raised ``exc`` (chain it as the cause)."""
+    return InvalidInputError(f"{what}: converting the {type(value).__name__} given raised {type(exc).__name__}: {exc}")
+
+
+def check_real(value: object, what: str) -> float:
+    """``value`` as a float: a real number, never a bool, text, a complex number or a `decimal.Decimal`.
+
+    Ints of any size, floats, `fractions.Fraction` and numpy's integer and
+    floating scalars are real numbers. NaN and the infinities pass (callers
+    that need finite numbers say so); a number beyond the float64 range does
+    not. ``what`` names the value in the message.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a real number, beyond the float64 range, or its ``__float__`` raised.
+
+    Examples
+    --------
+    >>> check_real(3, "x"), check_real(np.float32(0.5), "x")
+    (3.0, 0.5)
+    >>> check_real(10**400, "x")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: x is beyond the float64 range: an int of 1329 bits
+    >>> check_real(True, "x")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: x is a real number, not bool True
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InvalidInputError(f"{what} is a real number, not {type(value).__name__} {shown(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise InvalidInputError(f"{what} is beyond the float64 range: {shown(value)}") from None
+    except Exception as exc:  # noqa: BLE001 - the caller's __float__ may raise anything
+        raise _failed(what, value, exc) from exc
+
+
+def check_integer(value: object, what: str) -> int:
+    """``value`` as an int: an integer of any size (numpy's too), never a bool, a float or text.
+
+    Callers bound it: an id beyond 64 bits is no element's, a revision
+    beyond them no revision.
+
+    Raises
+    ------
+    InvalidInputError
+        Not an integer, or its ``__index__`` raised.
+
+    Examples
+    --------
+    >>> check_integer(np.uint64(2**64 - 1), "k")
+    18446744073709551615
+    >>> check_integer(2.0, "k")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: k is an integer, not float 2.0
+    """
+    if isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"{what} is an integer, not {type(value).__name__} {shown(value)}")
+    try:
+        return operator.index(value)
+    except TypeError:
+        raise InvalidInputError(f"{what} is an integer, not {type(value).__name__} {shown(value)}") from None
+    except Exception as exc:  # noqa: BLE001 - the caller's __index__ may raise anything
+        raise _failed(what, value, exc) from exc
+
+
+def check_revision(value: object, what: str = "revision") -> int:
+    """``value`` as a revision number (`check_integer`); beyond 64 bits it is no revision there can be.
+
+    Raises
+    ------
+    InvalidInputError
+        Not an integer.
+    RevisionNotFoundError
+        Beyond the 64-bit range revisions are stored in.
+
+    Examples
+    --------
+    >>> check_revision(np.int64(3))
+    3
+    >>> check_revision(2**64)
+    Traceback (most recent call last):
+    ...
+    hestore.errors.RevisionNotFoundError: there is no revision 18446744073709551616: revisions are 64-bit integers
+    """
+    number = check_integer(value, f"a {what}")
+    if not _I64_MIN <= number <= _I64_MAX:
+        raise RevisionNotFoundError(f"there is no {what} {shown(number)}: revisions are 64-bit integers")
+    return number
+
+
+def check_flag(value: object, what: str) -> bool:
+    """``value`` as a bool: True or False (numpy's too), never a number, text or None standing for one.
+
+    Examples
+    --------
+    >>> check_flag(np.True_, "binary")
+    True
+    >>> check_flag(1, "binary")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: binary is True or False, not int 1
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise InvalidInputError(f"{what} is True or False, not {type(value).__name__} {shown(value)}")
+
+
+def check_choice(value: object, options: Sequence[str], what: str) -> str:
+    """The one of the strings ``options`` that ``value`` is (itself: a str subclass comes back a plain str).
+
+    Only a str is compared with them: no caller's ``__eq__`` or
+    ``__hash__`` runs.
+
+    Examples
+    --------
+    >>> check_choice("skip", ("raise", "skip"), "on_error")
+    'skip'
+    >>> check_choice(["skip"], ("raise", "skip"), "on_error")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: on_error is one of 'raise', 'skip', not list ['skip']
+    """
+    if isinstance(value, str) and value in options:
+        return options[list(options).index(value)]
+    raise InvalidInputError(
+        f"{what} is one of {', '.join(map(repr, options))}, not {type(value).__name__} {shown(value)}"
+    )
+
+
+def check_text(value: object, what: str) -> str:
+    """``value`` if it is text SQL can hold: a str, valid Unicode (no lone surrogates), without NUL characters.
+
+    Examples
+    --------
+    >>> check_text("été", "label")
+    'été'
+    >>> check_text("a\\x00b", "label")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: label cannot contain NUL characters: 'a\\x00b'
+    """
+    if not isinstance(value, str):
+        raise InvalidInputError(f"{what} is text, not {type(value).__name__} {shown(value)}")
+    if "\x00" in value:
+        raise InvalidInputError(f"{what} cannot contain NUL characters: {shown(value)}")
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise InvalidInputError(f"{what} must be valid Unicode text (no lone surrogates): {shown(value)}") from None
+    return value
+
+
+def check_name(value: object, what: str) -> str:
+    """``value`` if it can name a mesh or a property: text (`check_text`) with a visible character, at most
+    `MAX_NAME` characters, and no control characters (newline, tab, …).
+
+    Examples
+    --------
+    >>> check_name("bracket", "a mesh name")
+    'bracket'
+    >>> check_name("two\\nlines", "a mesh name")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a mesh name cannot contain control characters (NUL, newline, ...): 'two\\nlines'
+    """
+    value = check_text(value, what)
+    if not value.strip():
+        raise InvalidInputError(f"{what} needs a visible character, not {shown(value)}")
+    if len(value) > MAX_NAME:
+        raise InvalidInputError(f"{what} has at most {MAX_NAME} characters, not {len(value)}")
+    if any(unicodedata.category(c) == "Cc" for c in value):
+        raise InvalidInputError(f"{what} cannot contain control characters (NUL, newline, ...): {shown(value)}")
+    return value
+
+
+def check_items(value: object, expected: str, *, ordered: bool = True) -> list:
+    """The items of an iterable ``value``, as a list: never text, bytes or a mapping (nor a set, if ``ordered``).
+
+    ``expected`` says what the value should be; the message is
+    ``"{expected}, not …"``.
+
+    Raises
+    ------
+    InvalidInputError
+        ``value`` is not such an iterable, or iterating over it raised.
+
+    Examples
+    --------
+    >>> check_items((1, 2, 3), "a position is three numbers")
+    [1, 2, 3]
+    >>> check_items("xyz", "a position is three numbers")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a position is three numbers, not str 'xyz'
+    """
+    refused = (str, bytes, dict, set, frozenset) if ordered else (str, bytes, dict)
+    if isinstance(value, refused) or not hasattr(value, "__iter__"):
+        raise InvalidInputError(f"{expected}, not {type(value).__name__} {shown(value)}")
+    try:
+        return list(value)
+    except Exception as exc:  # noqa: BLE001 - a 0-d array, or the caller's __iter__, may raise anything
+        raise _failed(expected, value, exc) from exc
+
+
+def check_arraylike(value: object, expected: str, dtype: Any = None) -> np.ndarray:
+    """``value`` as a numpy array (of ``dtype``, if given): an array or a sequence, never text, bytes, a mapping
+    or a set.
+
+    The array is not checked further: its shape and dtype are the caller's
+    to judge. ``expected`` says what the value should be.
+
+    Raises
+    ------
+    InvalidInputError
+        ``value`` is not array-like, or numpy could not make an array of it
+        (ragged rows, items whose conversions raise).
+
+    Examples
+    --------
+    >>> check_arraylike([[1, 2], [3, 4]], "positions must be an array").shape
+    (2, 2)
+    >>> check_arraylike([[1, 2], [3]], "positions must be an array", float)
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: positions must be an array: converting the list given raised ValueError: ...
+    """
+    if isinstance(value, (str, bytes, dict, set, frozenset)) or not hasattr(value, "__len__"):
+        raise InvalidInputError(f"{expected}, not {type(value).__name__}")
+    try:
+        return np.asarray(value, dtype=dtype)
+    except Exception as exc:  # noqa: BLE001 - numpy runs the items' own conversions, which may raise anything
+        raise _failed(expected, value, exc) from exc
+
+
+def check_dtype(dtype: object, what: str = "a property") -> str:
+    """A property dtype as its name in `DTYPES`, from the name itself or a numpy dtype or type numpy users write.
+
+    ``np.dtype("float64")``, ``np.float64`` and ``float`` are ``"float64"``;
+    ``np.dtype("int64")``, ``np.int64`` and ``int`` are ``"int64"``;
+    ``np.dtype(bool)``, ``np.bool_`` and ``bool`` are ``"bool"``; ``str``,
+    ``np.str_`` and a numpy unicode dtype (``np.dtype("U")``) are ``"str"``.
+    Anything else — another width (``float32``), ``object``, ``complex``, an
+    alias such as ``"f8"`` — is refused.
+
+    Examples
+    --------
+    >>> check_dtype(np.dtype("float64")), check_dtype(np.int64), check_dtype(bool), check_dtype(np.dtype("U5"))
+    ('float64', 'int64', 'bool', 'str')
+    >>> check_dtype(np.float32)
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: a property: dtypes are float64, int64, bool, str (or their numpy ...
+    """
+    if isinstance(dtype, str):
+        found = DTYPES[DTYPES.index(dtype)] if dtype in DTYPES else None  # the plain str, not a subclass
+    elif isinstance(dtype, np.dtype):
+        found = _DTYPE_OF_TYPE.get(dtype.type)
+    elif isinstance(dtype, type):
+        found = _DTYPE_OF_TYPE.get(dtype)
+    else:
+        found = None
+    if found is None:
+        raise InvalidInputError(
+            f"{what}: dtypes are {', '.join(DTYPES)} (or their numpy dtypes and Python types), "
+            f"not {type(dtype).__name__} {shown(dtype)}"
+        )
+    return found
+
 
 @dataclass(frozen=True)
 class Property:
@@ -90,6 +406,7 @@ class Property:
     kind : {"vertex", "halfedge", "edge", "polygon"}
     name : str
     dtype : {"float64", "int64", "bool", "str"}
+        Always the name, whatever numpy dtype or type declared it (`check_dtype`).
     shape : tuple
         ``()`` for one value per element, ``(k,)`` for ``k`` values.
     default : object
@@ -144,64 +461,47 @@ def check_spec(kind: object, name: object, dtype: object, shape: object) -> tupl
     ...
     hestore.errors.InvalidInputError: property 'label': only float64 and int64 properties take a shape, not str
     """
-    if kind not in KINDS:
-        raise InvalidInputError(f"property kinds are {', '.join(KINDS)}, not {kind!r}")
-    if not isinstance(name, str) or not name.strip() or len(name) > 255:
-        raise InvalidInputError(f"a property name is a non-blank string of at most 255 characters, not {name!r}")
-    if any(ord(c) < 32 or ord(c) == 127 for c in name):
-        raise InvalidInputError(f"property name {name!r} contains a control character")
-    try:
-        name.encode("utf-8")
-    except UnicodeEncodeError:
-        raise InvalidInputError(f"property name {name!r} is not valid Unicode text") from None
-    if dtype not in DTYPES:
-        raise InvalidInputError(f"property {name!r}: dtypes are {', '.join(DTYPES)}, not {dtype!r}")
-    if shape is None or shape == ():
+    kind = check_choice(kind, KINDS, "a property's kind")
+    name = check_name(name, "a property name")
+    dtype = check_dtype(dtype, f"property {name!r}")
+    if shape is None or (isinstance(shape, tuple) and not shape):
         return kind, name, dtype, ()
     if dtype not in ("float64", "int64"):
         raise InvalidInputError(f"property {name!r}: only float64 and int64 properties take a shape, not {dtype}")
-    ok = isinstance(shape, tuple) and len(shape) == 1 and type(shape[0]) is int and 1 <= shape[0] <= 1024
-    if not ok:
-        raise InvalidInputError(f"property {name!r}: shape is () or (k,) with 1 <= k <= 1024, not {shape!r}")
-    return kind, name, dtype, shape
+    one = isinstance(shape, tuple) and len(shape) == 1
+    k = check_integer(shape[0], f"property {name!r}: the k of shape (k,)") if one else 0
+    if not 1 <= k <= 1024:
+        raise InvalidInputError(f"property {name!r}: shape is () or (k,) with 1 <= k <= 1024, not {shown(shape)}")
+    return kind, name, dtype, (k,)
 
 
 def _scalar(prop: Property, value: object, where: str) -> Any:
     """One component, checked and converted to its Python type."""
-    dtype = prop.dtype
-
-    def refuse(why: str = "") -> InvalidInputError:
-        return InvalidInputError(
-            f"property {prop.name!r} of {where} is {dtype}, not {type(value).__name__} {value!r}{why}"
-        )
-
-    if dtype == "bool":
-        if isinstance(value, (bool, np.bool_)):
-            return bool(value)
-        raise refuse()
-    if dtype == "str":
-        if not isinstance(value, str):
-            raise refuse()
-        if "\x00" in value:
-            raise refuse(": text may not contain NUL characters")
-        try:
-            value.encode("utf-8")
-        except UnicodeEncodeError:
-            raise refuse(": not valid Unicode text") from None
-        return value
+    what = f"property {prop.name!r} of {where}"
+    if prop.dtype == "bool":
+        return check_flag(value, what)
+    if prop.dtype == "str":
+        return check_text(value, what)
+    if prop.dtype == "float64":
+        return check_real(value, what)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise refuse()
-    if dtype == "float64":
-        return float(value)
+        raise InvalidInputError(f"{what} is int64, not {type(value).__name__} {shown(value)}")
     if isinstance(value, numbers.Integral):
-        i = int(value)
+        i = check_integer(value, what)
     else:
-        f = float(value)
-        if not f.is_integer():
-            raise refuse(": not an integer")
-        i = int(f)
+        # A real number equal to an integer (3.0) is one: compared exactly, never through a float that
+        # would round a large one (a Fraction) to a neighbour.
+        try:
+            i = int(value)
+            exact = i == value
+        except (ValueError, OverflowError):  # NaN, the infinities
+            exact = False
+        except Exception as exc:  # noqa: BLE001 - the caller's __int__ or __eq__ may raise anything
+            raise _failed(what, value, exc) from exc
+        if not exact:
+            raise InvalidInputError(f"{what} is int64, not {type(value).__name__} {shown(value)}: not an integer")
     if not _I64_MIN <= i <= _I64_MAX:
-        raise refuse(": out of the 64-bit range")
+        raise InvalidInputError(f"{what} is int64, not {shown(value)}: out of the 64-bit range")
     return i
 
 
@@ -216,14 +516,10 @@ def check_value(prop: Property, value: object, where: str) -> Any:
         if isinstance(value, np.ndarray) and value.shape == ():
             value = value[()]
         return _scalar(prop, value, where)
-    k = prop.shape[0]
-    if isinstance(value, (str, bytes, dict, set)) or not hasattr(value, "__len__"):
-        raise InvalidInputError(
-            f"property {prop.name!r} of {where} takes {k} values, not {type(value).__name__} {value!r}"
-        )
-    items = value.tolist() if isinstance(value, np.ndarray) else list(value)
-    if len(items) != k or (isinstance(value, np.ndarray) and value.ndim != 1):
-        raise InvalidInputError(f"property {prop.name!r} of {where} takes {k} values, not {len(items)}: {value!r}")
+    expected = f"property {prop.name!r} of {where} takes {prop.shape[0]} values"
+    items = check_items(value, expected)
+    if len(items) != prop.shape[0] or (isinstance(value, np.ndarray) and value.ndim != 1):
+        raise InvalidInputError(f"{expected}, not {len(items)}: {shown(value)}")
     return tuple(_scalar(prop, x, where) for x in items)
 
 
@@ -241,12 +537,7 @@ def check_array(prop: Property, values: object, n: int) -> tuple[np.ndarray, np.
         mask = np.ma.getmaskarray(values)
         unset = mask.reshape(len(mask), -1).any(axis=1) if mask.ndim else None
         values = values.data
-    if isinstance(values, (str, bytes, dict, set)) or not hasattr(values, "__len__"):
-        raise InvalidInputError(f"{what} must be an array, not {type(values).__name__}")
-    try:
-        arr = np.asarray(values) if prop.dtype != "str" else np.asarray(values, dtype=object)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{what} must be a regular array; these are not") from None
+    arr = check_arraylike(values, f"{what} must be an array", object if prop.dtype == "str" else None)
     want = (n,) + prop.shape
     if arr.shape != want and not (n == 0 and arr.size == 0):
         raise InvalidInputError(f"{what} must have shape {want}, not {arr.shape}")

@@ -56,7 +56,12 @@ array.
 
 A malformed file raises `~hestore.errors.InvalidInputError` with the message
 ``"{path}:{line}: {what}"`` — for binary PLY data ``"{path}:byte {offset}:
-{what}"`` — and `read` returns nothing partial. A malformed file makes a
+{what}"`` — and `read` returns nothing partial. So does a path that cannot
+be one (not a str, bytes or path object, a NUL character:
+`hestore.urls.check_path`) and a file the system refuses — missing, a
+folder, no permission, a full disk — as ``"cannot read {path}: {reason}"``
+(``"cannot write …"``), the `OSError` chained (`file_errors`, which every
+module that touches a file uses). A malformed file makes a
 reader raise nothing else, and header counts are never trusted: each is
 checked against what the rest of the file can hold before anything is
 allocated for it, so memory and time stay within a small multiple of the
@@ -85,12 +90,13 @@ import os
 from collections.abc import Mapping
 
 from hestore.errors import InvalidInputError
-from hestore.io.common import PolygonSoup, Progress
+from hestore.io.common import PolygonSoup, Progress, file_errors
 from hestore.io.obj import read_obj, write_obj
 from hestore.io.off import read_off, write_off
 from hestore.io.ply import read_ply, write_ply
+from hestore.urls import check_path
 
-__all__ = ["FORMATS", "PolygonSoup", "format_of", "read", "write"]
+__all__ = ["FORMATS", "PolygonSoup", "file_errors", "format_of", "read", "write"]
 
 FORMATS = ("off", "obj", "ply")
 """The supported formats, named by their file extensions."""
@@ -114,7 +120,8 @@ def format_of(path: str | os.PathLike) -> str:
     Raises
     ------
     InvalidInputError
-        The extension is not one of `FORMATS` (case does not matter).
+        The extension is not one of `FORMATS` (case does not matter), or
+        ``path`` cannot be a path (`hestore.urls.check_path`).
 
     Examples
     --------
@@ -125,7 +132,7 @@ def format_of(path: str | os.PathLike) -> str:
     ...
     hestore.errors.InvalidInputError: bunny.xyz: unsupported file format '.xyz'; supported: .off, .obj, .ply (and ...)
     """
-    name = os.fsdecode(path)
+    name = check_path(path)
     ext = os.path.splitext(name)[1]
     fmt = ext[1:].lower()
     if fmt not in FORMATS:
@@ -159,9 +166,8 @@ def read(path: str | os.PathLike, *, progress: Progress | None = None) -> Polygo
     InvalidInputError
         Unsupported extension, or a malformed file; the message is
         ``"{path}:{line}: {what}"`` (``"{path}:byte {offset}: {what}"`` in
-        binary PLY data).
-    OSError
-        The file cannot be opened or read.
+        binary PLY data). A path that cannot be one, or a file that cannot
+        be opened or read: ``"cannot read {path}: {reason}"``.
 
     Examples
     --------
@@ -233,7 +239,8 @@ def write(
     InvalidInputError
         Unsupported extension, arrays that do not describe polygons on
         these vertices, or properties the format would hold but that are
-        malformed. Nothing is written then.
+        malformed: nothing is written then. A path that cannot be one, or a
+        file that cannot be written: ``"cannot write {path}: {reason}"``.
 
     Examples
     --------

@@ -5,8 +5,11 @@ This module belongs to `hestore.io` and is not public API, apart from
 
 * `PolygonSoup`, the one result type of every reader, and the per-element
   data it carries (`Carried` describes a PLY property that becomes such data);
-* the error helper: every malformed file raises
-  `~hestore.errors.InvalidInputError` as ``"{path}:{where}: {what}"``;
+* the error helpers: every malformed file raises
+  `~hestore.errors.InvalidInputError` as ``"{path}:{where}: {what}"``, and
+  every file the system refuses (missing, a folder, no permission, a full
+  disk) as ``"cannot read {path}: {reason}"`` (`file_errors`, which the
+  package re-exports for every module that reads or writes files);
 * number tokens: the strict per-token conversions of the per-line readers
   and the vectorised `parse` of whole chunks;
 * header counts: `count` parses them strictly and `check_room` bounds them
@@ -31,12 +34,14 @@ import os
 import stat
 import warnings
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import BinaryIO, Protocol
 
 import numpy as np
 
 from hestore.errors import InvalidInputError
+from hestore.urls import check_path
 
 Progress = Callable[[int, int], object]
 
@@ -183,8 +188,8 @@ def read_file(path: str | os.PathLike, progress: Progress | None, reader) -> Pol
     Every reader ends with ``progress(size, size)``, however it stepped
     through the file, so a caller's progress bar always completes.
     """
-    name = os.fsdecode(path)
-    with open(path, "rb") as f:
+    name = check_path(path)
+    with file_errors(name, "read"), open(name, "rb") as f:
         info = os.fstat(f.fileno())
         if stat.S_ISREG(info.st_mode):
             size = info.st_size
@@ -198,6 +203,36 @@ def read_file(path: str | os.PathLike, progress: Progress | None, reader) -> Pol
     if progress is not None:
         progress(size, size)
     return soup
+
+
+@contextmanager
+def file_errors(path: str, doing: str) -> Iterator[None]:
+    """The OS's refusal of a file inside the block as `InvalidInputError`: ``"cannot {doing} {path}: {reason}"``.
+
+    A missing file or folder, a folder where a file should be, no
+    permission, a full disk: the file a caller named cannot be used, which
+    is bad input like a malformed file. The `OSError` is the ``__cause__``.
+
+    Examples
+    --------
+    >>> with file_errors("/no/such/folder/x.off", "write"):
+    ...     open("/no/such/folder/x.off", "wb")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: cannot write /no/such/folder/x.off: No such file or directory
+    """
+    try:
+        yield
+    except OSError as exc:
+        raise InvalidInputError(f"cannot {doing} {path}: {exc.strerror or exc}") from exc
+
+
+@contextmanager
+def created(path: str | os.PathLike) -> Iterator[BinaryIO]:
+    """``path`` opened for writing, created or emptied; the path checked and the OS's refusals typed."""
+    name = check_path(path)
+    with file_errors(name, "write"), open(name, "wb") as f:
+        yield f
 
 
 class RowProgress:

@@ -50,6 +50,7 @@ from hestore.io.common import (
     TextFile,
     checked_arrays,
     coordinate,
+    created,
     error,
     first3,
     integer,
@@ -87,8 +88,6 @@ def read_obj(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     InvalidInputError
         A malformed file, or a texture coordinate or normal index out of
         range; the message is ``"{path}:{line}: {what}"``.
-    OSError
-        The file cannot be opened or read.
 
     Examples
     --------
@@ -202,7 +201,7 @@ def write_obj(
     uv, uv_refs = _distinct_rows(corner_properties, "uv", 2, len(indices))
     normals, normal_refs = _distinct_rows(corner_properties, "normal", 3, len(indices))
     report = RowProgress(progress, positions, offsets)
-    with open(path, "wb") as f:
+    with created(path) as f:
         if uv_refs is None and normal_refs is None:
             write_text_rows(f, positions, offsets, indices, "v ", "f", 1, report)
         else:

@@ -32,6 +32,7 @@ from hestore.io.common import (
     check_room,
     checked_arrays,
     count,
+    created,
     error,
     integer,
     read_file,
@@ -66,8 +67,6 @@ def read_off(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     ------
     InvalidInputError
         A malformed file; the message is ``"{path}:{line}: {what}"``.
-    OSError
-        The file cannot be opened or read.
 
     Examples
     --------
@@ -133,7 +132,7 @@ def write_off(path: str | os.PathLike, positions, offsets, indices, *, progress:
     """
     positions, offsets, indices = checked_arrays(positions, offsets, indices)
     report = RowProgress(progress, positions, offsets)
-    with open(path, "wb") as f:
+    with created(path) as f:
         f.write(f"OFF\n{len(positions)} {len(offsets) - 1} 0\n".encode())
         write_text_rows(f, positions, offsets, indices, "", None, 0, report)
     report.finish()

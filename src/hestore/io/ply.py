@@ -62,6 +62,7 @@ from hestore.io.common import (
     check_room,
     checked_arrays,
     count,
+    created,
     error,
     ranges,
     read_file,
@@ -98,8 +99,6 @@ def read_ply(path: str | os.PathLike, *, progress: Progress | None = None) -> Po
     InvalidInputError
         A malformed file; the message is ``"{path}:{line}: {what}"``, or
         ``"{path}:byte {offset}: {what}"`` in binary data.
-    OSError
-        The file cannot be opened or read.
 
     Examples
     --------
@@ -237,7 +236,7 @@ def write_ply(
     vertex_columns = _property_columns(vertex_properties, len(positions), "vertex", _VERTEX_WORDS)
     face_columns = _property_columns(polygon_properties, len(offsets) - 1, "face", _FACE_WORDS)
     report = RowProgress(progress, positions, offsets)
-    with open(path, "wb") as f:
+    with created(path) as f:
         if binary:
             _write_binary(f, positions, offsets, indices, report, vertex_columns, face_columns)
         else:
