@@ -524,13 +524,13 @@ def test_errors(mesh, store):
     with pytest.raises(InvalidInputError, match="'multigraph', 'graph', 'halfedge', 'dual'"):
         mesh.to_networkx("digraph")
     with pytest.raises(InvalidInputError):
-        graphs.to_networkx(mesh, kind=None)
+        graphs.to_networkx(mesh.ref, kind=None)
     G = mesh.to_networkx()
     store.delete_mesh("m")
     with pytest.raises(MeshNotFoundError, match="deleted"):
         mesh.to_networkx()
     with pytest.raises(MeshNotFoundError):
-        graphs.to_networkx(mesh, "dual")
+        graphs.to_networkx(mesh.ref, "dual")
     assert G.number_of_nodes() == 1
     store.close()
     with pytest.raises(HestoreError, match="closed"):

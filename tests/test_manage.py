@@ -287,8 +287,8 @@ def _octahedron(store, name="octa"):
 
 def test_dual_of_an_octahedron_is_a_cube_with_centroids_and_orientation(store):
     octa = _octahedron(store)
-    report = octa.dual("cube")
-    cube = report.mesh
+    cube = octa.dual("cube")
+    assert isinstance(cube, hestore.Mesh) and cube.name == "cube"  # the new mesh, as copy_mesh gives it
     assert cube.counts() == hestore.mesh.Counts(8, 24, 12, 6) and cube.check() == []
     assert cube.stats().polygon_sizes == {4: 6} and cube.stats().is_closed
     # Dual vertex i is the centroid of polygon i; dual polygon j goes around vertex j counter-clockwise.
@@ -308,11 +308,11 @@ def test_dual_of_an_octahedron_is_a_cube_with_centroids_and_orientation(store):
 
 def test_dual_of_cube1_matches_the_peers_counts_and_dual_of_dual(store, meshes):
     mesh = store.import_file(meshes / "cube1.off").mesh
-    dual = mesh.dual("cube1-dual").mesh
+    dual = mesh.dual("cube1-dual")
     c = dual.counts()
     assert (c.vertices, c.edges, c.polygons) == (15048, 22572, 7526)
     assert dual.check() == [] and dual.stats().euler_characteristic == mesh.stats().euler_characteristic
-    back = dual.dual("cube1-dual-dual").mesh
+    back = dual.dual("cube1-dual-dual")
     assert back.counts() == mesh.counts() and back.check() == []
 
 

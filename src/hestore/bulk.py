@@ -1,12 +1,16 @@
 """Bulk import and export: polygon soups and mesh files in, arrays and files out.
 
-This module owns moving whole meshes in and out of a store:
-`import_arrays` and `import_file` (SPEC §5) decide and build the half-edge
-structure with `hestore.build`, then hand the whole tables to the mesh's unit
-of work (`UnitOfWork.insert_bulk`), whose flush writes them in large batches
-(`hestore.columns`) like any other change; `to_arrays` and `export` read the
-tables back as columns in one snapshot and walk the polygon loops with numpy.
-File formats are `hestore.io`'s.
+This module owns moving whole meshes in and out of a store, below the
+catalogue: `build_arrays` and `build_file` decide and build the half-edge
+structure of an import with `hestore.build` (`BuiltImport`, under one
+`ImportOptions`), and `write` hands its whole tables to the unit of work of
+the mesh `hestore.Store` created for it (`UnitOfWork.insert_bulk`), whose
+flush writes them in large batches (`hestore.columns`) like any other
+change. `to_arrays` and `export` read the tables back as columns in one
+snapshot and walk the polygon loops with numpy; `dual` computes the dual's
+polygon soup. Every function here is handed a mesh's identity
+(`hestore.session.MeshRef`) or arrays, never the store: the store decides
+names and creates meshes. File formats are `hestore.io`'s.
 
 File data other than positions and polygons travels as properties
 (SPEC §3.2): a file's vertex and polygon properties (PLY) and its corner
@@ -29,7 +33,7 @@ from __future__ import annotations
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
@@ -48,17 +52,17 @@ from hestore.arrays import (
     ragged,
 )
 from hestore.columns import position_request
-from hestore.errors import InvalidInputError, MeshExistsError, NonOrientableError, TopologyError
+from hestore.errors import InvalidInputError, NonOrientableError, TopologyError
 from hestore.progress import check_progress
+from hestore.session import MeshRef
 from hestore.unitofwork import BulkRows, BulkValues
 from hestore.urls import check_path
 from hestore.values import Property
 
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
-    from hestore.store import Store
-
-__all__ = ["SkippedPolygon", "ImportReport", "MeshArrays", "import_arrays", "import_file", "to_arrays", "export"]
+__all__ = [
+    "SkippedPolygon", "ImportReport", "ImportOptions", "BuiltImport", "MeshArrays", "name_of", "build_arrays",
+    "build_file", "write", "WRITTEN", "dual", "to_arrays", "export",
+]
 
 #: ``progress(stage, done, total)``: stage is ``"read"`` (bytes), ``"build"`` or ``"write"`` (rows).
 Progress = Callable[[str, int, int], None]
@@ -84,7 +88,7 @@ class ImportReport:
 
     Attributes
     ----------
-    mesh : Mesh
+    mesh : hestore.Mesh
         The new mesh.
     vertices, edges, polygons : int
         How many of each were stored.
@@ -109,7 +113,7 @@ class ImportReport:
         ``split``).
     """
 
-    mesh: "Mesh"
+    mesh: Any
     vertices: int
     edges: int
     polygons: int
@@ -197,38 +201,15 @@ def _as_positions(positions) -> np.ndarray:
     return pos
 
 
-def import_arrays(
-    store: "Store",
-    name: str,
-    positions,
-    polygons,
-    *,
-    on_error: str = "raise",
-    allow_loops: bool = True,
-    allow_multi_edges: bool = True,
-    progress: Progress | None = None,
-    replace: bool = False,
-    orient: bool = False,
-    history: bool = True,
-) -> ImportReport:
-    """Store a polygon soup as a new mesh, built set-based.
+@dataclass(frozen=True)
+class ImportOptions:
+    """How an import builds and stores a mesh: one record for every import (arrays, files, trimesh, meshio).
 
-    The result is the topology that `Mesh.add_polygon` would give, called on
-    the polygons one by one in order (up to the order of free gaps around a
-    vertex where several fans meet): vertex ``i`` is ``positions[i]``,
-    polygon ids follow input order among the polygons kept, and vertices no
-    polygon uses are kept as isolated vertices.
+    Checked when made: an option of the wrong kind is `InvalidInputError`
+    before anything is read, built or written.
 
-    Parameters
+    Attributes
     ----------
-    store : Store
-    name : str
-        The new mesh's name.
-    positions : array_like, shape (V, 3) or (V, 2)
-        Finite coordinates.
-    polygons : array_like, shape (F, k), or sequence of sequences of int
-        Corners of each polygon, counter-clockwise, as row indices of
-        ``positions``.
     on_error : {"raise", "skip", "split"}
         What to do with a polygon the structure cannot take (an edge that
         would get a third polygon, an orientation that contradicts a
@@ -245,7 +226,8 @@ def import_arrays(
     allow_loops, allow_multi_edges : bool
         The new mesh's policy (see `Store.create_mesh`).
     progress : callable, optional
-        ``progress(stage, done, total)``.
+        ``progress(stage, done, total)``: stage is ``"read"`` (bytes),
+        ``"build"`` or ``"write"`` (rows).
     replace : bool
         Replace a mesh of that name, in the same transaction as the import:
         the old mesh goes only if the new one is stored.
@@ -262,59 +244,104 @@ def import_arrays(
         Whether the new mesh keeps its revisions (`Store.create_mesh`); the
         import is its revision 1 either way.
 
-    Returns
-    -------
-    ImportReport
+    Examples
+    --------
+    >>> ImportOptions(on_error="skip").orient
+    False
+    >>> ImportOptions(orient="yes")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: orient is True or False, not str 'yes'
+    """
+
+    on_error: str = "raise"
+    allow_loops: bool = True
+    allow_multi_edges: bool = True
+    progress: Progress | None = None
+    replace: bool = False
+    orient: bool = False
+    history: bool = True
+
+    def __post_init__(self) -> None:
+        checked = {"on_error": values.check_choice(self.on_error, ON_ERROR, "on_error")}
+        check_progress(self.progress)
+        for flag in ("allow_loops", "allow_multi_edges", "replace", "orient", "history"):
+            checked[flag] = values.check_flag(getattr(self, flag), flag)
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
+
+
+@dataclass(frozen=True)
+class BuiltImport:
+    """An import decided and built, not yet stored: the tables to write and what the report will say.
+
+    What `build_arrays` and `build_file` return and `write` stores; every
+    check has passed by the time one exists.
+    """
+
+    positions: np.ndarray
+    arrays: TopologyArrays
+    #: ``(Property, ids, values)`` of every column of file data, for the elements kept.
+    columns: list
+    polygons: int
+    skipped: list
+    source: str | None
+    flipped: list
+    split: dict
+    cut: list
+
+    def report(self, mesh: Any) -> ImportReport:
+        """The `ImportReport` of this import, stored as ``mesh`` (a `hestore.Mesh`)."""
+        declared = [spec for spec, _, _ in self.columns]
+        return ImportReport(
+            mesh, len(self.positions), len(self.arrays.e_id), self.polygons, self.skipped, self.source, declared,
+            self.flipped, self.split, self.cut,
+        )
+
+
+def name_of(path: str) -> str:
+    """The name a file's mesh gets when none is given: the file name without its extension.
+
+    Examples
+    --------
+    >>> name_of("scans/bunny.ply")
+    'bunny'
+    """
+    return os.path.splitext(os.path.basename(path))[0]
+
+
+def build_arrays(positions, polygons, options: ImportOptions) -> BuiltImport:
+    """Decide and build the import of a polygon soup (`hestore.Store.import_arrays`): nothing is written.
+
+    The result is the topology that `Mesh.add_polygon` would give, called on
+    the polygons one by one in order (up to the order of free gaps around a
+    vertex where several fans meet): vertex ``i`` is ``positions[i]``,
+    polygon ids follow input order among the polygons kept, and vertices no
+    polygon uses are kept as isolated vertices.
+
+    Parameters
+    ----------
+    positions : array_like, shape (V, 3) or (V, 2)
+        Finite coordinates.
+    polygons : array_like, shape (F, k), or sequence of sequences of int
+        Corners of each polygon, counter-clockwise, as row indices of
+        ``positions``.
+    options : ImportOptions
 
     Raises
     ------
     InvalidInputError, HalfEdgeNotFreeError, NonManifoldError, PolicyError
         With ``on_error="raise"``, for the first bad polygon; the error's
         ``skipped`` attribute is its `SkippedPolygon`.
-    MeshExistsError
-        A mesh of that name exists.
 
     Examples
     --------
-    >>> import hestore
-    >>> store = hestore.open("sqlite://")
     >>> square = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
-    >>> report = store.import_arrays("square", square, [[0, 1, 2], [0, 2, 3]])
-    >>> report.polygons, report.edges, report.mesh.check()
-    (2, 5, [])
-    >>> report = store.import_arrays("bad", square, [[0, 1, 2], [0, 1, 3]], on_error="skip")
-    >>> report.polygons, report.skipped[0].index
+    >>> built = build_arrays(square, [[0, 1, 2], [0, 1, 3]], ImportOptions(on_error="skip"))
+    >>> built.polygons, built.skipped[0].index
     (1, 1)
-    >>> report = store.import_arrays("kept", square, [[0, 1, 2], [0, 1, 3]], on_error="split")
-    >>> report.polygons, report.vertices, report.split
-    (2, 6, {0: [4], 1: [5]})
     """
-    _check_options(
-        on_error, progress, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, replace=replace,
-        orient=orient, history=history,
-    )
-    name = _check_name(store, name, replace)
-    pos, soup = _as_positions(positions), ragged(polygons)
-    return _import(
-        store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, replace=replace, orient=orient,
-        history=history,
-    )
-
-
-def _check_options(on_error: object, progress: object, **flags: object) -> None:
-    """The options of an import, checked before anything is read or built."""
-    values.check_choice(on_error, ON_ERROR, "on_error")
-    check_progress(progress)
-    for option, value in flags.items():
-        values.check_flag(value, option)
-
-
-def _check_name(store: "Store", name: object, replace: bool = False) -> str:
-    """The new mesh's name, checked; unless ``replace``, no mesh may have it."""
-    name = values.check_name(name, "a mesh name")
-    if not replace and name in store.meshes():
-        raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
-    return name
+    return _built(_as_positions(positions), ragged(polygons), options)
 
 
 class FileData(NamedTuple):
@@ -364,19 +391,19 @@ def _file_properties(data: FileData, built, soup: Ragged, source: str | None) ->
     return out
 
 
-def _import(
-    store, name, pos, soup, on_error, allow_loops, allow_multi_edges, progress, *,
-    lines=None, source=None, index_base=0, data: FileData | None = None, replace: bool = False,
-    orient: bool = False, history: bool = True,
-):
-    """Decide, then write: nothing is stored unless every check has passed."""
+def _built(
+    pos, soup, options: ImportOptions, *, lines=None, source=None, index_base=0, data: FileData | None = None,
+) -> BuiltImport:
+    """Decide and build: every check an import makes, before anything is written."""
+    progress = options.progress
     if progress is not None:
         progress("build", 0, 1)
     flipped: list = []
     cut: list = []
-    split = on_error == "split"
-    if orient:
-        turn = _build.orient(soup, cut=split, ok=_build.well_formed(len(pos), soup, allow_loops=allow_loops))
+    split = options.on_error == "split"
+    if options.orient:
+        ok = _build.well_formed(len(pos), soup, allow_loops=options.allow_loops)
+        turn = _build.orient(soup, cut=split, ok=ok)
         cut = turn.cut.tolist()
         if turn.conflict is not None:
             where = f"line {int(lines[turn.conflict])}, " if lines is not None else ""
@@ -390,7 +417,7 @@ def _import(
         if data is not None and data.corner:
             data = data._replace(corner={k: v[turn.order] for k, v in data.corner.items()})
         flipped = np.flatnonzero(turn.flip).tolist()
-    built = _build.build(len(pos), soup, allow_loops=allow_loops, index_base=index_base, split=split)
+    built = _build.build(len(pos), soup, allow_loops=options.allow_loops, index_base=index_base, split=split)
     copies: dict = {}
     if len(built.copied):
         pos = np.concatenate([pos, pos[built.copied]])
@@ -404,28 +431,28 @@ def _import(
     skipped = [
         SkippedPolygon(r.index, None if lines is None else int(lines[r.index]), r.reason) for r in built.refused
     ]
-    if skipped and on_error == "raise":
+    if skipped and options.on_error == "raise":
         first, error = skipped[0], built.refused[0].error
         prefix = f"{source}: " if source else ""
         exc = error(f"{prefix}{first}; nothing was stored (on_error='skip' would leave it out)")
         exc.skipped = first
         raise exc
     columns = _file_properties(data, built, soup, source) if data is not None else []
-    mesh = _write(store, name, pos, built.arrays, allow_loops, allow_multi_edges, progress, columns, replace, history)
-    declared = [spec for spec, _, _ in columns]
-    return ImportReport(
-        mesh, len(pos), len(built.arrays.e_id), len(built.accepted), skipped, source, declared, flipped, copies, cut
-    )
+    return BuiltImport(pos, built.arrays, columns, len(built.accepted), skipped, source, flipped, copies, cut)
 
 
-def _write(
-    store, name, pos, a: TopologyArrays, allow_loops, allow_multi_edges, progress, columns=(), replace=False,
-    history=True,
-) -> "Mesh":
-    """Create the mesh and write its four tables in one step (a transaction, or a savepoint in a block).
+#: The tables an import writes (their statistics are refreshed afterwards: `hestore.Store.import_arrays`).
+WRITTEN = (schema.vertices, schema.halfedges, schema.edges, schema.polygons)
 
-    With ``replace``, a mesh of that name is deleted in the same step.
+
+def write(ref: MeshRef, built: BuiltImport, progress: Progress | None = None) -> None:
+    """Write a built import into the new, empty mesh ``ref``: its four tables and file data, set-based.
+
+    One edit of the mesh's unit of work, whose flush writes the tables in
+    large batches (`hestore.columns`); the caller's scope makes the creation
+    of the mesh and this one step.
     """
+    a, pos = built.arrays, built.positions
     tables = {
         "vertices": {"id": a.v_id, "halfedge": a.v_halfedge, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]},
         "halfedges": {
@@ -440,58 +467,24 @@ def _write(
     report = None
     if progress is not None:
         report = lambda done, _total: progress("write", done, total)  # noqa: E731
-    session = store.session
-    outer = not session.in_transaction
-    with session.scope():
-        if replace and name in store.meshes():
-            store.delete_mesh(name)
-        mesh = store.create_mesh(name, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, history=history)
-        with session.editing(mesh.ref) as uow:
-            uow.insert_bulk(BulkRows(tables, report), counters)
-            for spec, ids, data in columns:
-                prop = uow.add_property(spec)
-                uow.stage(BulkValues(prop, ids, values.columns_of(prop, ids, data), None, replace_all=True))
-    if outer:
-        # Fresh statistics, so the planner knows how large the tables just became.
-        session.analyze([schema.metadata.tables[t] for t in tables])
+    with ref.session.editing(ref) as uow:
+        uow.insert_bulk(BulkRows(tables, report), counters)
+        for spec, ids, data in built.columns:
+            prop = uow.add_property(spec)
+            uow.stage(BulkValues(prop, ids, values.columns_of(prop, ids, data), None, replace_all=True))
     if progress is not None:
         progress("write", total, total)
-    return mesh
 
 
-def import_file(
-    store: "Store",
-    path,
-    name: str | None = None,
-    *,
-    on_error: str = "raise",
-    allow_loops: bool = True,
-    allow_multi_edges: bool = True,
-    progress: Progress | None = None,
-    replace: bool = False,
-    orient: bool = False,
-    history: bool = True,
-) -> ImportReport:
-    """Import an OFF, OBJ or PLY file (ASCII or binary) as a new mesh.
+def build_file(path: str, options: ImportOptions) -> BuiltImport:
+    """Read an OFF, OBJ or PLY file (ASCII or binary) and decide and build its import (`hestore.Store.import_file`).
 
     The file's vertex and polygon order are kept, vertices are never welded
-    by position and polygons are never triangulated; see `import_arrays` for
+    by position and polygons are never triangulated; see `build_arrays` for
     what is built and how bad polygons are handled (each `SkippedPolygon`
-    carries its file line for ASCII files).
-
-    Parameters
-    ----------
-    store : Store
-    path : str or os.PathLike
-        The file; its format comes from its extension.
-    name : str, optional
-        The new mesh's name; by default the file name without extension.
-    on_error, allow_loops, allow_multi_edges, progress, replace, orient, history
-        As for `import_arrays`.
-
-    Returns
-    -------
-    ImportReport
+    carries its file line for ASCII files). Its vertex and polygon
+    properties (PLY) and corner ``uv``/``normal`` (OBJ) come along as the
+    new mesh's properties.
 
     Raises
     ------
@@ -499,58 +492,41 @@ def import_file(
         The file is malformed (bad header, non-numeric or non-finite values,
         truncated): the message names the file and line. The file cannot be
         read (missing, a folder, no permission: ``"cannot read {path}:
-        {reason}"``), the path cannot be one, or an option is malformed.
-        Nothing is stored.
+        {reason}"``), or the path cannot be one.
 
     Examples
     --------
-    >>> import hestore, tempfile, pathlib
-    >>> folder = pathlib.Path(tempfile.mkdtemp())
-    >>> _ = (folder / "tri.off").write_text("OFF\\n3 1 0\\n0 0 0\\n1 0 0\\n0 1 0\\n3 0 1 2\\n")
-    >>> store = hestore.open("sqlite://")
-    >>> report = store.import_file(folder / "tri.off")
-    >>> report.mesh.name, report.vertices, report.polygons
-    ('tri', 3, 1)
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "tri.off"
+    >>> _ = path.write_text("OFF\\n3 1 0\\n0 0 0\\n1 0 0\\n0 1 0\\n3 0 1 2\\n")
+    >>> build_file(str(path), ImportOptions()).polygons
+    1
     """
-    _check_options(
-        on_error, progress, allow_loops=allow_loops, allow_multi_edges=allow_multi_edges, replace=replace,
-        orient=orient, history=history,
-    )
     path = check_path(path)
     kind = mesh_io.format_of(path)
-    if name is None:
-        name = os.path.splitext(os.path.basename(path))[0]
-    name = _check_name(store, name, replace)
+    progress = options.progress
     read_progress = None
     if progress is not None:
         read_progress = lambda done, total: progress("read", done, total)  # noqa: E731
     soup = mesh_io.read(path, progress=read_progress)
-    return _import(
-        store,
-        name,
+    return _built(
         soup.positions,
         Ragged(soup.offsets, soup.indices),
-        on_error,
-        allow_loops,
-        allow_multi_edges,
-        progress,
+        options,
         lines=soup.lines,
         source=path,
         index_base=1 if kind == "obj" else 0,  # OBJ counts vertices from 1; say so in messages
         data=FileData(soup.vertex_properties, soup.polygon_properties, soup.corner_properties),
-        replace=replace,
-        orient=orient,
-        history=history,
     )
 
 
-def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
+def _soup(ref: MeshRef) -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
     """Positions, polygon loops (as rows), vertex ids and each corner's half-edge id, read in one snapshot.
 
     A block's own edits are included.
     """
     h, p = schema.halfedges, schema.polygons
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_next), (_p_id, p_he) = snap.columns(
             [position_request(), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])]
         )
@@ -559,8 +535,8 @@ def _soup(mesh: "Mesh") -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
     return position_array(vx, vy, vz, v_missing), corners, v_id, h_id[loops.indices]
 
 
-def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> ImportReport:
-    """Store the dual of a closed mesh as a new mesh called ``name``.
+def dual(ref: MeshRef) -> tuple[np.ndarray, Ragged]:
+    """The dual of a closed mesh as a polygon soup: ``(positions, polygons)``, what `Mesh.dual` stores.
 
     The dual has a vertex at the centroid of each polygon (in polygon id
     order) and a polygon for each fan of polygons around a vertex, its
@@ -568,7 +544,7 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
     mesh does); a pinched vertex gives one polygon per fan. Each edge of the
     mesh becomes the dual edge between the polygons on its two sides.
     Everything is computed set-based on the mesh's arrays, read in one
-    snapshot, and stored like an import (one transaction).
+    snapshot; `Mesh.dual` stores it like an import (one transaction).
 
     Raises
     ------
@@ -577,8 +553,6 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
         closed mesh has a dual here.
     InvalidInputError
         A polygon's corner has no position.
-    MeshExistsError
-        A mesh is called ``name`` already.
 
     Examples
     --------
@@ -586,15 +560,13 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
     >>> store = hestore.open("sqlite://")
     >>> tetra = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
     >>> mesh = store.import_arrays("tetra", tetra, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]).mesh
-    >>> d = mesh.dual("tetra*").mesh
-    >>> d.counts(), d.stats().is_closed, d.check()
-    (Counts(vertices=4, halfedges=12, edges=6, polygons=4), True, [])
+    >>> positions, polygons = dual(mesh.ref)
+    >>> positions.shape, polygons.offsets.tolist()
+    ((4, 3), [0, 3, 6, 9, 12])
     """
-    name = _check_name(mesh.store, name)
-    check_progress(progress)
     h, p = schema.halfedges, schema.polygons
     halfedge_columns = [h.c.id, h.c.origin, h.c.prev, h.c.twin, sa.func.coalesce(h.c.polygon, -1)]
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_prev, h_twin, h_polygon), (p_id,) = snap.columns(
             [position_request(), (h, halfedge_columns), (p, [p.c.id])]
         )
@@ -602,14 +574,14 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
     if len(free):
         first = int(h_id[free[0]])
         raise TopologyError(
-            f"mesh {mesh.name!r} is not closed ({len(free)} free half-edges, e.g. {first}): only a closed mesh "
+            f"mesh {ref.name!r} is not closed ({len(free)} free half-edges, e.g. {first}): only a closed mesh "
             f"has a dual",
             (("halfedge", first),),
         )
     positions = position_array(vx, vy, vz, v_missing)
     corner_vertex = np.searchsorted(v_id, h_origin)
     if np.isnan(positions[corner_vertex]).any():
-        raise InvalidInputError(f"mesh {mesh.name!r} has polygon corners without a position: the dual needs them")
+        raise InvalidInputError(f"mesh {ref.name!r} has polygon corners without a position: the dual needs them")
     # Dual vertices: polygon centroids (a polygon's corners are its half-edges' origins).
     poly = np.searchsorted(p_id, h_polygon)
     degree = np.bincount(poly, minlength=len(p_id))
@@ -623,10 +595,10 @@ def dual(mesh: "Mesh", name: str, *, progress: Progress | None = None) -> Import
     order = np.lexsort((step, label, h_origin[label]))
     starts = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]])
     soup = Ragged(np.r_[starts, len(order)].astype(np.int64), poly[order].astype(np.int64))
-    return _import(mesh.store, name, centroids, soup, "raise", True, True, progress)
+    return centroids, soup
 
 
-def to_arrays(mesh: "Mesh") -> MeshArrays:
+def to_arrays(ref: MeshRef) -> MeshArrays:
     """The mesh's vertices and polygons as arrays.
 
     Polygons are in id order, each starting at its ``halfedge`` and running
@@ -647,7 +619,7 @@ def to_arrays(mesh: "Mesh") -> MeshArrays:
     >>> arrays.polygons.tolist(), arrays.vertex_ids.tolist(), arrays.positions.shape
     ([[0, 1, 2, 3]], [0, 1, 2, 3], (4, 3))
     """
-    positions, soup, vertex_ids, _ = _soup(mesh)
+    positions, soup, vertex_ids, _ = _soup(ref)
     counts = np.diff(soup.offsets)
     if len(counts) and (counts == counts[0]).all():
         polygons = soup.indices.reshape(len(counts), int(counts[0]))
@@ -658,7 +630,7 @@ def to_arrays(mesh: "Mesh") -> MeshArrays:
     return MeshArrays(positions, polygons, vertex_ids)
 
 
-def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None = None) -> None:
+def export(ref: MeshRef, path, *, binary: bool = True, progress: Progress | None = None) -> None:
     """Write the mesh's vertices and polygons to an OFF, OBJ or PLY file.
 
     The format comes from the extension; ``binary`` applies to PLY (binary
@@ -689,16 +661,16 @@ def export(mesh: "Mesh", path, *, binary: bool = True, progress: Progress | None
     check_progress(progress)
     if progress is not None:
         progress("read", 0, 1)
-    with mesh.session.snapshot(mesh.ref):  # one state for the topology and every property read
-        positions, soup, vertex_ids, corner_halfedges = _soup(mesh)
-        data = _export_data(mesh, mesh_io.format_of(path), corner_halfedges)
+    with ref.session.snapshot(ref):  # one state for the topology and every property read
+        positions, soup, vertex_ids, corner_halfedges = _soup(ref)
+        data = _export_data(ref, mesh_io.format_of(path), corner_halfedges)
     if progress is not None:
         progress("read", 1, 1)
     unplaced = np.isnan(positions).any(axis=1)
     if unplaced.any():
         ids = vertex_ids[unplaced][:5].tolist()
         raise InvalidInputError(
-            f"cannot export {mesh.name!r}: {int(unplaced.sum())} vertices have no position (ids {ids}...)"
+            f"cannot export {ref.name!r}: {int(unplaced.sum())} vertices have no position (ids {ids}...)"
         )
     write_progress = None
     if progress is not None:
@@ -716,21 +688,21 @@ def _filled(array: np.ndarray) -> np.ndarray:
     return array.filled(np.nan if array.dtype.kind == "f" else 0)
 
 
-def _export_data(mesh: "Mesh", fmt: str, corner_halfedges: np.ndarray) -> FileData:
+def _export_data(ref: MeshRef, fmt: str, corner_halfedges: np.ndarray) -> FileData:
     """The properties a format can hold: PLY vertex and polygon numbers, OBJ corner ``uv`` and ``normal``."""
     data = FileData({}, {}, {})
     if fmt == "ply":
         for kind, out in (("vertex", data.vertex), ("polygon", data.polygon)):
-            for name, prop in props.properties(mesh, kind).items():
+            for name, prop in props.properties(ref, kind).items():
                 if prop.dtype != "str":
-                    out[name] = _filled(props.property_array(mesh, kind, name)[1])
+                    out[name] = _filled(props.property_array(ref, kind, name)[1])
     elif fmt == "obj":
-        found = props.properties(mesh, "halfedge")
+        found = props.properties(ref, "halfedge")
         for name, width in (("uv", 2), ("normal", 3)):
             prop = found.get(name)
             if prop is None or prop.dtype != "float64" or prop.shape != (width,):
                 continue
-            ids, array = props.property_array(mesh, "halfedge", name)
+            ids, array = props.property_array(ref, "halfedge", name)
             at = np.searchsorted(ids, corner_halfedges)
             data.corner[name] = _filled(array)[at] if len(ids) else np.full((0, width), np.nan)
     return data

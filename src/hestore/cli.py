@@ -52,6 +52,7 @@ from collections.abc import Sequence
 
 import hestore
 from hestore import migrate, urls
+from hestore.bulk import name_of
 from hestore.errors import HestoreError, InvalidInputError, MeshExistsError, PolicyError
 from hestore.history import KINDS as ELEMENT_KINDS
 from hestore.progress import ProgressBar
@@ -107,7 +108,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
 def _cmd_import(args: argparse.Namespace) -> int:
     path = args.file
     with _open(args) as store:
-        name = args.name if args.name is not None else os.path.splitext(os.path.basename(path))[0]
+        name = args.name if args.name is not None else name_of(path)
         replacing = args.replace and name in store.meshes()
         try:
             with ProgressBar(units=_IMPORT_UNITS) as bar:

@@ -44,7 +44,7 @@ import gc
 from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import compress, islice
-from typing import TYPE_CHECKING, Callable, Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
 import networkx as nx
 import numpy as np
@@ -57,9 +57,7 @@ from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError, shown
 from hestore.progress import check_progress
 from hestore.values import Property, check_choice, check_items
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = ["KINDS", "LENGTH", "to_networkx"]
 
@@ -75,7 +73,7 @@ CACHE = "graphs"
 
 
 def to_networkx(
-    mesh: "Mesh",
+    ref: MeshRef,
     kind: str = "multigraph",
     attrs: Iterable[str] | None = None,
     vertices: Iterable[int] | None = None,
@@ -85,8 +83,8 @@ def to_networkx(
 
     Parameters
     ----------
-    mesh : hestore.Mesh
-        The mesh.
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     kind : {"multigraph", "graph", "halfedge", "dual"}
         Which graph:
 
@@ -283,37 +281,37 @@ def to_networkx(
                 "vertices= takes the vertex kinds ('multigraph', 'graph', 'halfedge'); "
                 "the dual's nodes are polygons"
             )
-        return _induced(mesh, kind, names, vertices)
-    key = (mesh.id, kind, names) if names else (mesh.id, kind)
-    with mesh.session.snapshot(mesh.ref, committed=True) as snap:
+        return _induced(ref, kind, names, vertices)
+    key = (ref.id, kind, names) if names else (ref.id, kind)
+    with ref.session.snapshot(ref, committed=True) as snap:
         # Only an in-memory SQLite store inside a block reads its own
         # connection there, and so sees uncommitted edits: a graph of those
         # must not be cached under a revision number a rollback may reuse.
-        cache = mesh.session.caches.setdefault(CACHE, {}) if snap.isolated else {}
+        cache = ref.session.caches.setdefault(CACHE, {}) if snap.isolated else {}
         revision = snap.revision
         hit = cache.get(key)
         if hit is not None and hit[0] == revision:
             return hit[1]
-        plan = _plan(mesh, snap, kind, names) if names else None
+        plan = _plan(ref, snap, kind, names) if names else None
         requests = _REQUESTS[kind]()
         used = len(requests)
         if plan is not None and plan.length and kind == "dual":
             requests.append(position_request())  # the dual's nodes are polygons: positions only for lengths
         report("read", 0, 1)
         columns = snap.columns(requests)
-        extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        extra = _attributes(snap, ref, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
         report("read", 1, 1)
     report("build", 0, 1)
     with _gc_paused():
         G = _BUILDERS[kind](*columns[:used], extra=extra)
     report("build", 1, 1)
-    G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
+    G.graph.update(mesh=ref.name, revision=revision, kind=kind)
     nx.freeze(G)
     _remember(cache, key, revision, G)
     return G
 
 
-def _induced(mesh: "Mesh", kind: str, names: tuple[str, ...], vertices: Iterable[int]) -> nx.Graph:
+def _induced(ref: MeshRef, kind: str, names: tuple[str, ...], vertices: Iterable[int]) -> nx.Graph:
     """The view of ``kind`` induced by the vertex ids ``vertices``: the builders of the whole view, fed their rows.
 
     The vertices' rows and the half-edges between them are all the
@@ -321,16 +319,16 @@ def _induced(mesh: "Mesh", kind: str, names: tuple[str, ...], vertices: Iterable
     as the whole view restricted to those nodes.
     """
     ids = sorted(set(vertices))
-    with mesh.session.snapshot(mesh.ref) as snap:
-        plan = _plan(mesh, snap, kind, names) if names else None
-        v_rows = traversal.vertex_rows(mesh, ids) if ids else []
-        h_rows = traversal.halfedges_among(mesh, ids) if ids else []
+    with ref.session.snapshot(ref) as snap:
+        plan = _plan(ref, snap, kind, names) if names else None
+        v_rows = traversal.vertex_rows(ref, ids) if ids else []
+        h_rows = traversal.halfedges_among(ref, ids) if ids else []
         columns = _induced_columns(kind, v_rows, h_rows)
-        extra = _attributes(snap, mesh, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
+        extra = _attributes(snap, ref, kind, plan, columns) if plan is not None else _NO_ATTRIBUTES
         revision = snap.revision
     with _gc_paused():
         G = _BUILDERS[kind](*columns, extra=extra)
-    G.graph.update(mesh=mesh.name, revision=revision, kind=kind)
+    G.graph.update(mesh=ref.name, revision=revision, kind=kind)
     nx.freeze(G)
     return G
 
@@ -479,9 +477,9 @@ def _names(attrs: object) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
-def _plan(mesh: "Mesh", snap, kind: str, names: tuple[str, ...]) -> _Plan:
+def _plan(ref: MeshRef, snap, kind: str, names: tuple[str, ...]) -> _Plan:
     """Resolve ``names`` against the properties of the mesh in this snapshot."""
-    catalogue = props.catalogue_in(snap, mesh.id)
+    catalogue = props.catalogue_in(snap, ref.id)
     node_kind, edge_kinds = _TARGETS[kind]
     own_nodes, own_edges = _OWN[kind]
     nodes: list[Property] = []
@@ -495,7 +493,7 @@ def _plan(mesh: "Mesh", snap, kind: str, names: tuple[str, ...]) -> _Plan:
             *first, last = (node_kind, *edge_kinds)
             kinds = f"{', '.join(first)} or {last}"
             raise PropertyNotFoundError(
-                f"mesh {mesh.name!r} has no {kinds} property named {name!r} for its {kind} view; "
+                f"mesh {ref.name!r} has no {kinds} property named {name!r} for its {kind} view; "
                 f"attrs takes the names of such properties and {LENGTH!r}"
             )
         for found, own, where in ((node, own_nodes, "node"), (edge, own_edges, "edge")):
@@ -540,15 +538,15 @@ def _length_column(vertices, u: np.ndarray, v: np.ndarray) -> _Column:
     return _Column(LENGTH, lengths, np.ones(len(lengths), dtype=bool))
 
 
-def _property_column(snap, mesh: "Mesh", prop: Property, ids: np.ndarray) -> _Column:
+def _property_column(snap, ref: MeshRef, prop: Property, ids: np.ndarray) -> _Column:
     """The values of ``prop`` for the elements ``ids``, in the graph's own snapshot (committed data)."""
-    return _as_column(prop, props.array_in(snap, mesh, prop, ids))
+    return _as_column(prop, props.array_in(snap, ref, prop, ids))
 
 
-def _attributes(snap, mesh: "Mesh", kind: str, plan: _Plan, columns: list) -> _Attributes:
+def _attributes(snap, ref: MeshRef, kind: str, plan: _Plan, columns: list) -> _Attributes:
     """The columns of ``plan``, per node row and per edge (half-edge) row of the builder's columns."""
     node_ids = columns[0][0]
-    nodes = tuple(_property_column(snap, mesh, prop, node_ids) for prop in plan.nodes)
+    nodes = tuple(_property_column(snap, ref, prop, node_ids) for prop in plan.nodes)
     halfedges = columns[1]
     h_id, h_origin, h_twin = halfedges[0], halfedges[1], halfedges[2]
     edges = []
@@ -566,10 +564,10 @@ def _attributes(snap, mesh: "Mesh", kind: str, plan: _Plan, columns: list) -> _A
             # Each half-edge takes its edge's value.
             h_edge = halfedges[3]
             edge_ids = np.unique(h_edge)
-            column = _property_column(snap, mesh, item, edge_ids)
+            column = _property_column(snap, ref, item, edge_ids)
             edges.append(column.take(np.searchsorted(edge_ids, h_edge)))
         else:
-            edges.append(_property_column(snap, mesh, item, h_id if kind == "halfedge" else columns[2][0]))
+            edges.append(_property_column(snap, ref, item, h_id if kind == "halfedge" else columns[2][0]))
     return _Attributes(nodes, tuple(edges))
 
 

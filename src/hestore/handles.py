@@ -15,15 +15,12 @@ in each class's docstring: ``lnext``/``lprev``/``sym``/``org``/``dest``
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 from hestore import navigation as nav
 from hestore import properties as props
 from hestore.errors import ElementNotFoundError, shown
 from hestore.values import check_integer
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
 
 __all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "element_id", "wrap"]
 
@@ -64,10 +61,11 @@ class Handle:
 
     __slots__ = ("mesh", "id")
 
-    mesh: "Mesh"
+    #: The `hestore.Mesh` (or view of one) the element belongs to; a handle reads through its ``ref``.
+    mesh: Any
     id: int
 
-    def __init__(self, mesh: "Mesh", id: int) -> None:
+    def __init__(self, mesh: Any, id: int) -> None:
         if type(id) is not int or not _ID_MIN <= id <= _ID_MAX:
             id = element_id(id, type(self).__name__.lower())
         _set(self, "mesh", mesh)
@@ -96,15 +94,15 @@ class Handle:
 
     def __getitem__(self, name: str):
         """The element's value of property ``name`` (see `hestore.Mesh.add_property`)."""
-        return props.value(self.mesh, self.kind, self.id, name)
+        return props.value(self.mesh.ref, self.kind, self.id, name)
 
     def __setitem__(self, name: str, value) -> None:
         """Set the element's value of property ``name``: an edit like any other."""
-        props.set_value(self.mesh, self.kind, self.id, name, value)
+        props.set_value(self.mesh.ref, self.kind, self.id, name, value)
 
     def __delitem__(self, name: str) -> None:
         """Unset the element's value of property ``name`` (back to the default)."""
-        props.set_value(self.mesh, self.kind, self.id, name, None)
+        props.set_value(self.mesh.ref, self.kind, self.id, name, None)
 
 
 _new = object.__new__
@@ -112,7 +110,7 @@ _set_mesh = Handle.mesh.__set__
 _set_id = Handle.id.__set__
 
 
-def wrap(cls: type, mesh: "Mesh", i: int) -> Handle:
+def wrap(cls: type, mesh: Any, i: int) -> Handle:
     """A handle of an id known to be an int in range (one read from the store): `Handle` without the checks.
 
     Examples
@@ -147,55 +145,55 @@ class Vertex(Handle):
     @property
     def halfedge(self) -> "HalfEdge | None":
         """An outgoing half-edge, a free one if there is any; ``None`` if isolated."""
-        h = nav.vertex_row(self.mesh, self.id)[0]
+        h = nav.vertex_row(self.mesh.ref, self.id)[0]
         return None if h is None else wrap(HalfEdge, self.mesh, h)
 
     @property
     def position(self) -> tuple[float, float, float] | None:
         """``(x, y, z)``, or ``None``."""
-        row = nav.vertex_row(self.mesh, self.id)
+        row = nav.vertex_row(self.mesh.ref, self.id)
         return None if row[1] is None else (row[1], row[2], row[3])
 
     @property
     def degree(self) -> int:
         """Number of outgoing half-edges (a self-loop counts twice)."""
-        return len(nav.star(self.mesh, self.id))
+        return len(nav.star(self.mesh.ref, self.id))
 
     @property
     def is_isolated(self) -> bool:
         """Whether no edge touches this vertex."""
-        return nav.vertex_row(self.mesh, self.id)[0] is None
+        return nav.vertex_row(self.mesh.ref, self.id)[0] is None
 
     @property
     def is_boundary(self) -> bool:
         """Whether a free half-edge leaves this vertex (or it is isolated)."""
-        return nav.is_boundary_vertex(self.mesh, self.id)
+        return nav.is_boundary_vertex(self.mesh.ref, self.id)
 
     def outgoing(self) -> list["HalfEdge"]:
         """Outgoing half-edges, counter-clockwise from `halfedge`."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(m, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(m.ref, self.id)]
 
     def incoming(self) -> list["HalfEdge"]:
         """Incoming half-edges (twins of `outgoing`, same order)."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(m, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(m.ref, self.id)]
 
     def neighbors(self) -> list["Vertex"]:
         """One neighbour per outgoing half-edge: repeats for parallel edges, self for a loop."""
         m = self.mesh
-        return [wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(m, self.id, targets=True)]
+        return [wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(m.ref, self.id, targets=True)]
 
     def edges(self) -> list["Edge"]:
         """One edge per outgoing half-edge (a self-loop twice)."""
         m = self.mesh
-        return [wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(m, self.id)]
+        return [wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(m.ref, self.id)]
 
     def polygons(self) -> list["Polygon"]:
         """Polygons around the vertex, counter-clockwise, free gaps skipped."""
         m = self.mesh
         polygon = nav.STAR_POLYGON
-        return [wrap(Polygon, m, r[polygon]) for r in nav.star(m, self.id) if r[polygon] is not None]
+        return [wrap(Polygon, m, r[polygon]) for r in nav.star(m.ref, self.id) if r[polygon] is not None]
 
 
 class HalfEdge(Handle):
@@ -220,7 +218,7 @@ class HalfEdge(Handle):
     kind = "halfedge"
 
     def _record(self) -> tuple:
-        return nav.halfedge_record(self.mesh, self.id)
+        return nav.halfedge_record(self.mesh.ref, self.id)
 
     @property
     def next(self) -> "HalfEdge":
@@ -296,12 +294,12 @@ class HalfEdge(Handle):
     @property
     def vector(self) -> tuple[float, float, float] | None:
         """``target.position - origin.position``; ``None`` without positions."""
-        return nav.vector(self.mesh, self.id)
+        return nav.vector(self.mesh.ref, self.id)
 
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self.mesh, self.id)
+        return nav.length(self.mesh.ref, self.id)
 
     # Guibas–Stolfi and other vocabularies (SPEC §3).
     lnext = next
@@ -330,7 +328,7 @@ class Edge(Handle):
     kind = "edge"
 
     def _row(self) -> tuple:
-        return nav.edge_row(self.mesh, self.id)
+        return nav.edge_row(self.mesh.ref, self.id)
 
     @property
     def halfedge(self) -> HalfEdge:
@@ -352,7 +350,7 @@ class Edge(Handle):
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self.mesh, self._row()[0])
+        return nav.length(self.mesh.ref, self._row()[0])
 
     def halfedges(self) -> tuple[HalfEdge, HalfEdge]:
         """``(halfedge, halfedge.twin)``."""
@@ -391,29 +389,29 @@ class Polygon(Handle):
     @property
     def halfedge(self) -> HalfEdge:
         """One half-edge of its loop."""
-        return wrap(HalfEdge, self.mesh, nav.polygon_halfedge(self.mesh, self.id))
+        return wrap(HalfEdge, self.mesh, nav.polygon_halfedge(self.mesh.ref, self.id))
 
     @property
     def degree(self) -> int:
         """Number of half-edges (corners)."""
-        return len(nav.ring(self.mesh, self.id))
+        return len(nav.ring(self.mesh.ref, self.id))
 
     def halfedges(self) -> list[HalfEdge]:
         """Its half-edges in ``next`` order from `halfedge`."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[0]) for r in nav.ring(m, self.id)]
+        return [wrap(HalfEdge, m, r[0]) for r in nav.ring(m.ref, self.id)]
 
     def vertices(self) -> list[Vertex]:
         """Its corners, counter-clockwise."""
         m = self.mesh
-        return [wrap(Vertex, m, r[2]) for r in nav.ring(m, self.id)]
+        return [wrap(Vertex, m, r[2]) for r in nav.ring(m.ref, self.id)]
 
     def edges(self) -> list[Edge]:
         """Its edges, in order."""
         m = self.mesh
-        return [wrap(Edge, m, r[3]) for r in nav.ring(m, self.id)]
+        return [wrap(Edge, m, r[3]) for r in nav.ring(m.ref, self.id)]
 
     def neighbors(self) -> list["Polygon"]:
         """Polygons across its edges (``None`` sides skipped; itself where it meets itself)."""
         m = self.mesh
-        return [wrap(Polygon, m, r[4]) for r in nav.ring(m, self.id) if r[4] is not None]
+        return [wrap(Polygon, m, r[4]) for r in nav.ring(m.ref, self.id) if r[4] is not None]

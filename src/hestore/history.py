@@ -19,15 +19,12 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import TYPE_CHECKING
 
 from hestore import schema
 from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
 from hestore.journal import KINDS
 from hestore.values import check_integer, check_revision, property_of, value_of
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = [
     "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of",
@@ -121,7 +118,7 @@ def _same(x, y) -> bool:
     return x == y or (isinstance(x, float) and isinstance(y, float) and x != x and y != y)
 
 
-def diff(mesh: "Mesh", a: int, b: int) -> Diff:
+def diff(ref: MeshRef, a: int, b: int) -> Diff:
     """What differs between revisions ``a`` and ``b`` of ``mesh`` (``created``: in ``b``, not in ``a``).
 
     Examples
@@ -135,17 +132,17 @@ def diff(mesh: "Mesh", a: int, b: int) -> Diff:
     ([2], [])
     """
     a, b = check_revision(a), check_revision(b)
-    return diff_of(mesh.session.versions(mesh.ref, a, b))
+    return diff_of(ref.session.versions(ref, a, b))
 
 
-def changes_of(mesh: "Mesh", number: int, stored: str | None) -> dict:
+def changes_of(ref: MeshRef, number: int, stored: str | None) -> dict:
     """The ``changes`` of one revision: stored for a bulk revision, else its diff with the one before."""
     if stored is not None:
         return json.loads(stored)
-    return diff_of(mesh.session.versions(mesh.ref, number - 1, number, check=False)).counts()
+    return diff_of(ref.session.versions(ref, number - 1, number, check=False)).counts()
 
 
-def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
+def history(ref: MeshRef, limit: int | None = None) -> list[Revision]:
     """The kept revisions of ``mesh`` from 1 up, newest first (at most ``limit``).
 
     Examples
@@ -163,14 +160,14 @@ def history(mesh: "Mesh", limit: int | None = None) -> list[Revision]:
         if not 0 <= limit < 2**63:  # SQL takes no count beyond 64 bits
             raise InvalidInputError(f"limit is a number of revisions from 0 to 2**63 - 1, not {shown(limit)}")
     kept = [
-        Revision(int(n), _utc(at), message, changes_of(mesh, int(n), stored))
-        for n, at, message, stored, _action, _target in mesh.session.revisions(mesh.ref, limit)
+        Revision(int(n), _utc(at), message, changes_of(ref, int(n), stored))
+        for n, at, message, stored, _action, _target in ref.session.revisions(ref, limit)
     ]
     if not kept:
         return kept
     # Another process may have pruned meanwhile, taking rows some changes were read from: those
     # revisions are gone. A prune only moves forward, so what is kept now was kept all along.
-    oldest = mesh.session.oldest_kept(mesh.ref)
+    oldest = ref.session.oldest_kept(ref)
     return [r for r in kept if r.number >= oldest]
 
 
@@ -181,7 +178,7 @@ def _utc(at: datetime) -> datetime:
     return at if at.tzinfo is not None else at.replace(tzinfo=timezone.utc)
 
 
-def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
+def _stacks(ref: MeshRef) -> tuple[list[int], list[int]]:
     """The undo stack (revisions whose change can be undone) and the redo stack, oldest first.
 
     Replayed from the kept revisions' actions: an ordinary revision (a
@@ -190,7 +187,7 @@ def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
     """
     undo_stack: list[int] = []
     redo_stack: list[int] = []
-    for number, _at, _message, _changes, action, target in mesh.session.revisions(mesh.ref, newest_first=False):
+    for number, _at, _message, _changes, action, target in ref.session.revisions(ref, newest_first=False):
         if action == "undo":
             if undo_stack and undo_stack[-1] == target:
                 undo_stack.pop()
@@ -205,41 +202,41 @@ def _stacks(mesh: "Mesh") -> tuple[list[int], list[int]]:
     return undo_stack, redo_stack
 
 
-def revert(mesh: "Mesh", revision: int, message: str | None = None) -> int:
+def revert(ref: MeshRef, revision: int, message: str | None = None) -> int:
     """Commit a new revision whose content equals ``mesh.at(revision)``; return its number."""
     revision = check_revision(revision)
-    return mesh.session.restore(mesh.ref, revision, message or f"revert to revision {revision}", "revert", revision)
+    return ref.session.restore(ref, revision, message or f"revert to revision {revision}", "revert", revision)
 
 
-def undo(mesh: "Mesh") -> int:
+def undo(ref: MeshRef) -> int:
     """Undo the most recent change not yet undone: a new revision equal to the state before it."""
-    return _step(mesh, "undo")
+    return _step(ref, "undo")
 
 
-def redo(mesh: "Mesh") -> int:
+def redo(ref: MeshRef) -> int:
     """Re-apply the most recently undone change: a new revision equal to the state after it."""
-    return _step(mesh, "redo")
+    return _step(ref, "redo")
 
 
-def _step(mesh: "Mesh", action: str) -> int:
-    session = mesh.session
-    session.restorable(mesh.ref, action)
+def _step(ref: MeshRef, action: str) -> int:
+    session = ref.session
+    session.restorable(ref, action)
     # What to restore is decided under the writer lock, from the history as committed then: a stack
     # read before the lock is granted may miss a revision another writer committed meanwhile, and
     # restoring from it would throw that edit away.
     with session.scope():
-        session.lock(mesh.ref)
-        stack = _stacks(mesh)[0 if action == "undo" else 1]
+        session.lock(ref)
+        stack = _stacks(ref)[0 if action == "undo" else 1]
         if not stack:
-            raise RevisionNotFoundError(f"mesh {mesh.name!r} has nothing to {action}")
+            raise RevisionNotFoundError(f"mesh {ref.name!r} has nothing to {action}")
         target = stack[-1]
         state = target - 1 if action == "undo" else target  # before the change, or after it
-        return session.restore(mesh.ref, state, f"{action} of revision {target}", action, target)
+        return session.restore(ref, state, f"{action} of revision {target}", action, target)
 
 
-def prune(mesh: "Mesh", keep: int) -> int:
+def prune(ref: MeshRef, keep: int) -> int:
     """Keep the newest ``keep`` revisions of ``mesh`` (at least 1: the current one); return the oldest kept."""
     keep = check_integer(keep, "keep")
     if keep < 1:
         raise InvalidInputError(f"keep must be at least 1 (the current revision), not {shown(keep)}")
-    return mesh.session.prune(mesh.ref, keep)
+    return ref.session.prune(ref, keep)

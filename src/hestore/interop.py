@@ -8,8 +8,8 @@ these calls raise `MissingDependencyError` saying what to install.
 
 Everything goes through `hestore.bulk`'s arrays: a mesh leaves as
 `hestore.bulk.to_arrays` gives it (vertices in id order, polygons in id
-order from their ``halfedge``) and comes back through
-`hestore.bulk.import_arrays` (one transaction, the same checks and
+order from their ``halfedge``) and comes back as a polygon soup that
+`hestore.Store.import_arrays` stores (one transaction, the same checks and
 ``on_error``). What a library cannot hold is said, never lost silently:
 
 * trimesh holds triangles only: other polygons are cut into fans from their
@@ -26,28 +26,24 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from hestore import bulk, navigation
 from hestore.errors import InvalidInputError, require
 from hestore.io import file_errors
+from hestore.session import MeshRef
 from hestore.urls import check_path
 from hestore.values import check_arraylike
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
-    from hestore.store import Store
 
 __all__ = [
     "MESHIO_EXTENSIONS",
     "to_trimesh",
-    "import_trimesh",
+    "trimesh_soup",
     "to_meshio",
-    "import_meshio",
+    "meshio_soup",
     "read_meshio_file",
     "write_meshio_file",
 ]
@@ -59,15 +55,15 @@ MESHIO_EXTENSIONS = (".stl", ".vtk", ".vtu")
 _BLOCKS = {3: "triangle", 4: "quad"}
 
 
-def _polygons(mesh: "Mesh") -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
+def _polygons(ref: MeshRef) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
     """Positions (every vertex positioned), polygons by corner rows, polygon ids, vertex ids."""
-    arrays = bulk.to_arrays(mesh)
+    arrays = bulk.to_arrays(ref)
     if len(arrays.positions) and np.isnan(arrays.positions).any():
         missing = int(arrays.vertex_ids[np.isnan(arrays.positions).any(axis=1)][0])
-        raise InvalidInputError(f"vertex {missing} of mesh {mesh.name!r} has no position: it cannot be exported")
+        raise InvalidInputError(f"vertex {missing} of mesh {ref.name!r} has no position: it cannot be exported")
     polygons = arrays.polygons
     rows = [np.asarray(p, dtype=np.int64) for p in polygons] if isinstance(polygons, list) else list(polygons)
-    polygon_ids = np.array(navigation.ids(mesh, "polygon"), dtype=np.int64)
+    polygon_ids = np.array(navigation.ids(ref, "polygon"), dtype=np.int64)
     return arrays.positions, rows, polygon_ids, arrays.vertex_ids
 
 
@@ -85,7 +81,7 @@ def _fans(rows: list[np.ndarray], ids: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.concatenate(tris).astype(np.int64), np.concatenate(owner).astype(np.int64)
 
 
-def to_trimesh(mesh: "Mesh") -> Any:
+def to_trimesh(ref: MeshRef) -> Any:
     """The mesh as a ``trimesh.Trimesh`` (vertices in id order; non-triangles cut into fans).
 
     ``metadata["vertex_ids"]`` holds each trimesh vertex's id, and
@@ -102,7 +98,7 @@ def to_trimesh(mesh: "Mesh") -> Any:
     ([[0, 1, 2], [0, 2, 3]], [0, 0])
     """
     trimesh = require("trimesh")
-    positions, rows, ids, vertex_ids = _polygons(mesh)
+    positions, rows, ids, vertex_ids = _polygons(ref)
     faces, owner = _fans(rows, ids)
     tm = trimesh.Trimesh(vertices=positions, faces=faces, process=False)
     tm.metadata["vertex_ids"] = vertex_ids
@@ -110,22 +106,21 @@ def to_trimesh(mesh: "Mesh") -> Any:
     return tm
 
 
-def import_trimesh(store: "Store", name: str, tm: Any, **options) -> bulk.ImportReport:
-    """Store a ``trimesh.Trimesh`` as a new mesh: vertex ``i`` and face ``j`` in its order.
+def trimesh_soup(tm: Any) -> tuple[Any, Any]:
+    """A ``trimesh.Trimesh`` as a polygon soup ``(positions, triangles)``: what `hestore.Store.import_trimesh` stores.
 
-    ``options`` are `hestore.bulk.import_arrays`'s (``on_error``, ``orient``, …).
+    Vertex ``i`` and face ``j`` in its order.
 
     Examples
     --------
-    >>> import hestore, trimesh
-    >>> store = hestore.open("sqlite://")
-    >>> report = store.import_trimesh("box", trimesh.creation.box())
-    >>> report.polygons, report.mesh.stats().is_closed
-    (12, True)
+    >>> import trimesh
+    >>> positions, triangles = trimesh_soup(trimesh.creation.box())
+    >>> positions.shape, triangles.shape
+    ((8, 3), (12, 3))
     """
     if not (hasattr(tm, "vertices") and hasattr(tm, "faces")):
         raise InvalidInputError(f"expected a trimesh.Trimesh, got {type(tm).__name__}")
-    return bulk.import_arrays(store, name, tm.vertices, tm.faces, **options)
+    return tm.vertices, tm.faces
 
 
 def _cells(rows: list[np.ndarray]) -> list[tuple[str, np.ndarray]]:
@@ -140,7 +135,7 @@ def _cells(rows: list[np.ndarray]) -> list[tuple[str, np.ndarray]]:
     return [(kind, np.array(cells, dtype=np.int64)) for kind, cells in blocks]
 
 
-def to_meshio(mesh: "Mesh") -> Any:
+def to_meshio(ref: MeshRef) -> Any:
     """The mesh as a ``meshio.Mesh``: every polygon kept, in blocks by arity, in polygon id order.
 
     Examples
@@ -153,7 +148,7 @@ def to_meshio(mesh: "Mesh") -> Any:
     [('quad', [[0, 1, 2, 3]]), ('triangle', [[1, 4, 2]])]
     """
     meshio = require("meshio")
-    positions, rows, _ids, _vertex_ids = _polygons(mesh)
+    positions, rows, _ids, _vertex_ids = _polygons(ref)
     return meshio.Mesh(positions, [(kind, cells) for kind, cells in _cells([r for r in rows if len(r) >= 3])])
 
 
@@ -173,29 +168,28 @@ def _soup_of(m: Any, what: str) -> tuple[Any, list]:
     return m.points, surface
 
 
-def import_meshio(store: "Store", name: str, m: Any, **options) -> bulk.ImportReport:
-    """Store a ``meshio.Mesh`` of polygon cells (``triangle``, ``quad``, ``polygon``) as a new mesh.
+def meshio_soup(m: Any) -> tuple[Any, list]:
+    """A ``meshio.Mesh`` of polygon cells (``triangle``, ``quad``, ``polygon``) as a polygon soup.
+
+    What `hestore.Store.import_meshio` stores: ``(positions, polygons)``.
+    Cells that are not polygons are refused.
 
     Examples
     --------
-    >>> import hestore, meshio
-    >>> store = hestore.open("sqlite://")
+    >>> import meshio
     >>> m = meshio.Mesh([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [("triangle", [[0, 1, 2]])])
-    >>> store.import_meshio("t", m).polygons
-    1
+    >>> meshio_soup(m)[1]
+    [[0, 1, 2]]
     """
     if not (hasattr(m, "points") and hasattr(m, "cells")):
         raise InvalidInputError(f"expected a meshio.Mesh, got {type(m).__name__}")
-    points, polygons = _soup_of(m, "the meshio mesh")
-    return bulk.import_arrays(store, name, points, polygons, **options)
+    return _soup_of(m, "the meshio mesh")
 
 
-def read_meshio_file(store: "Store", path, name: str | None = None, **options) -> bulk.ImportReport:
-    """Import an STL, VTK or VTU file through meshio (`hestore.Store.import_file` for those extensions)."""
+def read_meshio_file(path) -> tuple[Any, list]:
+    """Read an STL, VTK or VTU file through meshio as a polygon soup (`hestore.Store.import_file` stores it)."""
     meshio = require("meshio")
     path = check_path(path)
-    if name is None:
-        name = os.path.splitext(os.path.basename(path))[0]
     with file_errors(path, "read"), open(path, "rb"):
         pass  # the system's own reason (missing, a folder, no permission), not meshio's guess
     said = io.StringIO()
@@ -208,20 +202,18 @@ def read_meshio_file(store: "Store", path, name: str | None = None, **options) -
     except (Exception, SystemExit) as exc:  # many exception types, and SystemExit, for one malformed file
         why = " ".join(said.getvalue().split()) or str(exc) or type(exc).__name__
         raise InvalidInputError(f"{path}: meshio cannot read it: {why}") from None
-    points, polygons = _soup_of(m, path)
-    options.pop("progress", None)
-    return bulk.import_arrays(store, name, points, polygons, **options)
+    return _soup_of(m, path)
 
 
-def write_meshio_file(mesh: "Mesh", path) -> None:
+def write_meshio_file(ref: MeshRef, path) -> None:
     """Write an STL (triangles: polygons cut into fans), VTK or VTU file through meshio."""
     meshio = require("meshio")
     path = check_path(path)
     if path.lower().endswith(".stl"):
-        positions, rows, ids, _vertex_ids = _polygons(mesh)
+        positions, rows, ids, _vertex_ids = _polygons(ref)
         faces, _owner = _fans(rows, ids)
         m = meshio.Mesh(positions, [("triangle", faces)])
     else:
-        m = to_meshio(mesh)
+        m = to_meshio(ref)
     with file_errors(path, "write"):
         meshio.write(path, m)

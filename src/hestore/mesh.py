@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Sequence
 
 import sqlalchemy as sa
 
@@ -50,8 +50,6 @@ from hestore.urls import check_path
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
-
-    from hestore.store import Store
 
 __all__ = ["Mesh", "Counts"]
 
@@ -102,7 +100,7 @@ class Mesh:
     ref : hestore.session.MeshRef
         The mesh's identity in that session.
     allow_loops, allow_multi_edges : bool
-        The mesh's policy.
+        The mesh's policy (read-only: it is the mesh's identity's).
 
     Examples
     --------
@@ -118,14 +116,22 @@ class Mesh:
     (False, 4)
     """
 
-    __slots__ = ("store", "session", "ref", "allow_loops", "allow_multi_edges")
+    __slots__ = ("store", "session", "ref")
 
-    def __init__(self, store: "Store", ref: MeshRef, allow_loops: bool, allow_multi_edges: bool) -> None:
+    def __init__(self, store: Any, ref: MeshRef) -> None:
         self.store = store
-        self.session = store.session
+        self.session = ref.session
         self.ref = ref
-        self.allow_loops = allow_loops
-        self.allow_multi_edges = allow_multi_edges
+
+    @property
+    def allow_loops(self) -> bool:
+        """Whether self-loop edges may be added."""
+        return self.ref.allow_loops
+
+    @property
+    def allow_multi_edges(self) -> bool:
+        """Whether parallel edges may be added."""
+        return self.ref.allow_multi_edges
 
     @property
     def id(self) -> int:
@@ -224,7 +230,7 @@ class Mesh:
         """
         base = self.ref.base or self.ref
         number = values.check_revision(revision)
-        return Mesh(self.store, self.session.view(base, number), self.allow_loops, self.allow_multi_edges)
+        return Mesh(self.store, self.session.view(base, number))
 
     def history(self, limit: int | None = None) -> list[history.Revision]:
         """The kept revisions from 1 up, newest first; see `hestore.history.history`."""
@@ -264,16 +270,15 @@ class Mesh:
         """
         return history.prune(self._writable(), keep)
 
-    def _base(self) -> "Mesh":
-        if self.ref.revision is None:
-            return self
-        base = self.ref.base
-        return Mesh(self.store, base, self.allow_loops, self.allow_multi_edges)
+    def _base(self) -> MeshRef:
+        """The identity of the mesh itself (of a view: of the mesh it shows)."""
+        return self.ref.base or self.ref
 
-    def _writable(self) -> "Mesh":
+    def _writable(self) -> MeshRef:
+        """The mesh's identity, for an edit: `ReadOnlyError` for a view."""
         if self.ref.revision is not None:
             self.session.lock(self.ref)  # raises ReadOnlyError
-        return self
+        return self.ref
 
     def counts(self) -> Counts:
         """Number of vertices, half-edges, edges and polygons.
@@ -292,21 +297,21 @@ class Mesh:
 
     def stats(self, progress=None) -> summary.Stats:
         """Counts and topological invariants of the mesh; see `hestore.summary.stats` (and its ``progress``)."""
-        return summary.stats(self, progress)
+        return summary.stats(self.ref, progress)
 
     def boundary_loops(self) -> list[list[HalfEdge]]:
         """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
-        return summary.boundary_loops(self)
+        return [[wrap(HalfEdge, self, h) for h in loop] for loop in summary.boundary_loops(self.ref)]
 
     def components(self, progress=None) -> list[set[Vertex]]:
         """Connected components of the vertex–edge graph; see `hestore.summary.components` (and its ``progress``)."""
-        return summary.components(self, progress)
+        return [{wrap(Vertex, self, v) for v in part} for part in summary.components(self.ref, progress)]
 
     # -- lookup and iteration -----------------------------------------------
 
     def _lookup(self, kind: type, what: str, i: object) -> Handle:
         i = element_id(i, what)  # refuses what cannot be an id
-        navigation.exists(self, what, i)
+        navigation.exists(self.ref, what, i)
         return wrap(kind, self, i)
 
     def vertex(self, id: int) -> Vertex:
@@ -340,19 +345,19 @@ class Mesh:
 
     def vertices(self) -> Iterator[Vertex]:
         """All vertices, in id order."""
-        return (Vertex(self, i) for i in navigation.ids(self, "vertex"))
+        return (Vertex(self, i) for i in navigation.ids(self.ref, "vertex"))
 
     def halfedges(self) -> Iterator[HalfEdge]:
         """All half-edges, in id order."""
-        return (HalfEdge(self, i) for i in navigation.ids(self, "half-edge"))
+        return (HalfEdge(self, i) for i in navigation.ids(self.ref, "half-edge"))
 
     def edges(self) -> Iterator[Edge]:
         """All edges, in id order."""
-        return (Edge(self, i) for i in navigation.ids(self, "edge"))
+        return (Edge(self, i) for i in navigation.ids(self.ref, "edge"))
 
     def polygons(self) -> Iterator[Polygon]:
         """All polygons, in id order."""
-        return (Polygon(self, i) for i in navigation.ids(self, "polygon"))
+        return (Polygon(self, i) for i in navigation.ids(self.ref, "polygon"))
 
     def find_halfedge(self, a: Vertex, b: Vertex) -> HalfEdge | None:
         """A half-edge from ``a`` to ``b``, preferring a free one; ``None`` if there is none.
@@ -366,7 +371,7 @@ class Mesh:
         >>> mesh.find_halfedge(a, b), mesh.find_halfedge(a, c)
         (HalfEdge(0), None)
         """
-        h = navigation.find_halfedge(self, self._own(a, Vertex), self._own(b, Vertex))
+        h = navigation.find_halfedge(self.ref, self._own(a, Vertex), self._own(b, Vertex))
         return None if h is None else HalfEdge(self, h)
 
     # -- editing ------------------------------------------------------------
@@ -933,7 +938,7 @@ class Mesh:
         >>> mesh.set_position(v, None); v.position is None
         True
         """
-        properties.set_position(self, self._element(v, Vertex), position)
+        properties.set_position(self.ref, self._element(v, Vertex), position)
 
     def set_positions(self, vertices, positions) -> None:
         """Move many vertices at once: one set-based write; see `hestore.properties.set_positions`.
@@ -963,19 +968,19 @@ class Mesh:
         >>> mesh.add_property("polygon", "label", "str", default="")
         Property(kind='polygon', name='label', dtype='str', shape=(), default='')
         """
-        return properties.add_property(self, kind, name, dtype, shape=shape, default=default)
+        return properties.add_property(self.ref, kind, name, dtype, shape=shape, default=default)
 
     def properties(self, kind: str) -> dict[str, Property]:
         """The properties declared on a kind, by name; see `hestore.properties.properties`."""
-        return properties.properties(self, kind)
+        return properties.properties(self.ref, kind)
 
     def remove_property(self, kind: str, name: str) -> None:
         """Remove a property with all its values; see `hestore.properties.remove_property`."""
-        properties.remove_property(self, kind, name)
+        properties.remove_property(self.ref, kind, name)
 
     def property_array(self, kind: str, name: str):
         """``(ids, values)`` of every live element of a kind; see `hestore.properties.property_array`."""
-        return properties.property_array(self, kind, name)
+        return properties.property_array(self.ref, kind, name)
 
     def set_property_array(self, kind: str, name: str, ids, values) -> None:
         """Set many elements' values at once; see `hestore.properties.set_property_array`.
@@ -983,7 +988,7 @@ class Mesh:
         ``ids`` are ids, or handles of the kind.
         """
         cls = _KIND_OF.get(kind, Handle) if isinstance(kind, str) else Handle  # a bad kind is the callee's to refuse
-        properties.set_property_array(self, kind, name, self._elements(ids, cls), values)
+        properties.set_property_array(self.ref, kind, name, self._elements(ids, cls), values)
 
     # -- graph views and bulk export -------------------------------------------
 
@@ -1033,7 +1038,7 @@ class Mesh:
         from hestore import graphs
 
         ids = None if vertices is None else self._vertex_ids(vertices, "vertices")
-        return graphs.to_networkx(self, kind, attrs, ids, progress)
+        return graphs.to_networkx(self.ref, kind, attrs, ids, progress)
 
     def _vertex_ids(self, vertices: object, what: str) -> list[int]:
         """The ids of an iterable of `Vertex` handles of this mesh."""
@@ -1054,7 +1059,7 @@ class Mesh:
         >>> sorted(v.id for v in mesh.k_ring(a, 1)), sorted(v.id for v in mesh.k_ring(a, 5))
         ([0, 1], [0, 1, 2])
         """
-        return traversal.k_ring(self, self._own(v, Vertex, " for v"), k)
+        return {wrap(Vertex, self, i) for i in traversal.k_ring(self.ref, self._own(v, Vertex, " for v"), k)}
 
     def shortest_path(self, a: Vertex, b: Vertex, weight: str | None = None) -> list[Vertex]:
         """A shortest path from ``a`` to ``b``: fewest edges, or least total ``"length"``; see
@@ -1071,10 +1076,14 @@ class Mesh:
         >>> mesh.shortest_path(a, c), mesh.shortest_path(a, c, weight="length"), mesh.shortest_path(b, b)
         ([Vertex(0), Vertex(2)], [Vertex(0), Vertex(2)], [Vertex(1)])
         """
-        return traversal.shortest_path(self, self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b"), weight)
+        path = traversal.shortest_path(self.ref, self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b"), weight)
+        return [wrap(Vertex, self, i) for i in path]
 
-    def dual(self, name: str) -> bulk.ImportReport:
-        """Store the dual of this closed mesh as a new mesh; see `hestore.bulk.dual`.
+    def dual(self, name: str) -> "Mesh":
+        """Store the dual of this closed mesh as a new mesh called ``name``, and return it; see `hestore.bulk.dual`.
+
+        Stored like an import (`hestore.Store.import_arrays`): one
+        transaction; a taken name is `MeshExistsError`.
 
         Examples
         --------
@@ -1084,11 +1093,12 @@ class Mesh:
         >>> store = hestore.open("sqlite://")
         >>> xyz = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
         >>> faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
-        >>> cube = store.import_arrays("octahedron", xyz, faces).mesh.dual("cube").mesh
+        >>> cube = store.import_arrays("octahedron", xyz, faces).mesh.dual("cube")
         >>> cube.counts(), cube.stats().polygon_sizes, cube.check()
         (Counts(vertices=8, halfedges=24, edges=12, polygons=6), {4: 6}, [])
         """
-        return bulk.dual(self, name)
+        name = values.check_name(name, "a mesh name")  # before the dual is computed
+        return self.store.import_arrays(name, *bulk.dual(self.ref)).mesh
 
     def to_arrays(self) -> bulk.MeshArrays:
         """``(positions, polygons, vertex_ids)``; see `hestore.bulk.to_arrays`.
@@ -1100,7 +1110,7 @@ class Mesh:
         >>> mesh.to_arrays().polygons.tolist()
         [[0, 1, 2]]
         """
-        return bulk.to_arrays(self)
+        return bulk.to_arrays(self.ref)
 
     def export(self, path, **options) -> None:
         """Write the mesh to an OFF, OBJ or PLY file (`hestore.bulk.export`), or STL, VTK, VTU through meshio.
@@ -1110,17 +1120,17 @@ class Mesh:
         """
         path = check_path(path)
         if path.lower().endswith(interop.MESHIO_EXTENSIONS):
-            interop.write_meshio_file(self, path)
+            interop.write_meshio_file(self.ref, path)
             return
-        bulk.export(self, path, **options)
+        bulk.export(self.ref, path, **options)
 
     def to_trimesh(self):
         """The mesh as a ``trimesh.Trimesh`` (needs trimesh); see `hestore.interop.to_trimesh`."""
-        return interop.to_trimesh(self)
+        return interop.to_trimesh(self.ref)
 
     def to_meshio(self):
         """The mesh as a ``meshio.Mesh`` (needs meshio); see `hestore.interop.to_meshio`."""
-        return interop.to_meshio(self)
+        return interop.to_meshio(self.ref)
 
     # -- pictures -----------------------------------------------------------
 
@@ -1137,11 +1147,11 @@ class Mesh:
         >>> [c.get_gid() for c in ax.collections]
         ['polygons', 'boundary_loops']
         """
-        return render.plot(self, ax, **options)
+        return render.plot(self.ref, ax, **options)
 
     def render(self, path, **options) -> None:
         """Write a picture of the mesh to a PNG or SVG file (needs matplotlib); see `hestore.render.render`."""
-        render.render(self, path, **options)
+        render.render(self.ref, path, **options)
 
     # -- validation ---------------------------------------------------------
 
@@ -1163,7 +1173,7 @@ class Mesh:
         >>> mesh.check()
         []
         """
-        return validation.check(self, progress)
+        return validation.check(self.ref, progress)
 
     def validate(self) -> None:
         """Raise `InvariantViolationError` (carrying `check`'s list) unless the mesh is valid.

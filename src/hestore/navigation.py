@@ -1,8 +1,8 @@
 """Navigation: reading the stored structure, one element at a time.
 
 This module owns the queries behind every name of SPEC §3's navigation table
-and behind the circulators. Its functions are free functions on a mesh and
-integer ids, returning ids and id records; `hestore.handles` wraps them into
+and behind the circulators. Its functions are free functions on a mesh's
+identity (`hestore.session.MeshRef`) and integer ids, returning ids and id records; `hestore.handles` wraps them into
 handles. Each answers with as few queries as it can: a half-edge's references
 together with its target in one query, a vertex's whole star or a polygon's
 whole ring in one query, ordered in Python afterwards. Every query is a
@@ -19,16 +19,13 @@ An element that is not there raises `ElementNotFoundError`, or
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 
 from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
 from hestore.statements import indexed_by
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = [
     "missing",
@@ -49,8 +46,8 @@ __all__ = [
 _H = schema.halfedges
 
 
-def _rows(mesh: "Mesh", key, build, values: dict) -> list[tuple]:
-    return mesh.session.fetch(mesh.ref, key, build, values)
+def _rows(ref: MeshRef, key, build, values: dict) -> list[tuple]:
+    return ref.session.fetch(ref, key, build, values)
 
 
 def _build_mesh():
@@ -58,11 +55,11 @@ def _build_mesh():
     return sa.select(m.c.id).where(m.c.id == sa.bindparam("m"))
 
 
-def missing(mesh: "Mesh", kind: str, i: int) -> ElementNotFoundError:
+def missing(ref: MeshRef, kind: str, i: int) -> ElementNotFoundError:
     """The error for element ``i`` of ``kind`` not found: `MeshNotFoundError` if the mesh is gone."""
-    if not _rows(mesh, "nav_mesh", _build_mesh, {}):
-        return mesh.session.missing(mesh.ref)
-    return ElementNotFoundError(f"{kind} {i} does not exist in mesh {mesh.name!r} (removed, or never created)")
+    if not _rows(ref, "nav_mesh", _build_mesh, {}):
+        return ref.session.missing(ref)
+    return ElementNotFoundError(f"{kind} {i} does not exist in mesh {ref.name!r} (removed, or never created)")
 
 
 _TABLES = {"vertex": schema.vertices, "half-edge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
@@ -80,11 +77,11 @@ def _exists_query(table: sa.Table):
 _EXISTS = {kind: _exists_query(table) for kind, table in _TABLES.items()}
 
 
-def exists(mesh: "Mesh", kind: str, i: int) -> None:
+def exists(ref: MeshRef, kind: str, i: int) -> None:
     """Raise unless element ``i`` of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``) exists."""
     key, build = _EXISTS[kind]
-    if not mesh.session.fetch(mesh.ref, key, build, {"i": i}):
-        raise missing(mesh, kind, i)
+    if not ref.session.fetch(ref, key, build, {"i": i}):
+        raise missing(ref, kind, i)
 
 
 # -- half-edges ---------------------------------------------------------------
@@ -99,27 +96,27 @@ def _build_he():
     )
 
 
-def halfedge_record(mesh: "Mesh", h: int) -> tuple:
+def halfedge_record(ref: MeshRef, h: int) -> tuple:
     """``(origin, next, prev, twin, edge, polygon, target)`` of half-edge ``h``, in one query."""
-    rows = _rows(mesh, "nav_he", _build_he, {"i": h})
+    rows = _rows(ref, "nav_he", _build_he, {"i": h})
     if not rows:
-        raise missing(mesh, "half-edge", h)
+        raise missing(ref, "half-edge", h)
     return rows[0]
 
 
-def vector(mesh: "Mesh", h: int) -> tuple[float, float, float] | None:
+def vector(ref: MeshRef, h: int) -> tuple[float, float, float] | None:
     """``position(target) - position(origin)`` of half-edge ``h``; ``None`` unless both ends have positions."""
-    rec = halfedge_record(mesh, h)
-    a = vertex_row(mesh, rec[0])
-    b = vertex_row(mesh, rec[6])
+    rec = halfedge_record(ref, h)
+    a = vertex_row(ref, rec[0])
+    b = vertex_row(ref, rec[6])
     if a[1] is None or b[1] is None:
         return None
     return (b[1] - a[1], b[2] - a[2], b[3] - a[3])
 
 
-def length(mesh: "Mesh", h: int) -> float | None:
+def length(ref: MeshRef, h: int) -> float | None:
     """Euclidean length of half-edge ``h``; ``None`` unless both ends have positions."""
-    v = vector(mesh, h)
+    v = vector(ref, h)
     return None if v is None else math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
@@ -133,11 +130,11 @@ def _build_v():
     )
 
 
-def vertex_row(mesh: "Mesh", v: int) -> tuple:
+def vertex_row(ref: MeshRef, v: int) -> tuple:
     """``(halfedge, x, y, z)`` of vertex ``v`` (``halfedge`` None if isolated, coordinates None without a position)."""
-    rows = _rows(mesh, "nav_v", _build_v, {"i": v})
+    rows = _rows(ref, "nav_v", _build_v, {"i": v})
     if not rows:
-        raise missing(mesh, "vertex", v)
+        raise missing(ref, "vertex", v)
     return rows[0]
 
 
@@ -169,7 +166,7 @@ STAR_EDGE, STAR_POLYGON = 4, 5
 STAR_TARGET = 4
 
 
-def star(mesh: "Mesh", v: int, *, targets: bool = False) -> list[tuple]:
+def star(ref: MeshRef, v: int, *, targets: bool = False) -> list[tuple]:
     """Outgoing half-edges of vertex ``v``, counter-clockwise from ``v.halfedge``.
 
     Each row is ``(v.halfedge, id, prev, twin, edge, polygon)``, or with
@@ -180,9 +177,9 @@ def star(mesh: "Mesh", v: int, *, targets: bool = False) -> list[tuple]:
     prev.
     """
     key, build = _STARS[targets]
-    rows = mesh.session.fetch(mesh.ref, key, build, {"i": v})
+    rows = ref.session.fetch(ref, key, build, {"i": v})
     if not rows:
-        raise missing(mesh, "vertex", v)
+        raise missing(ref, "vertex", v)
     start = rows[0][0]
     if start is None:
         return []
@@ -215,14 +212,14 @@ def _build_vfree():
     )
 
 
-def is_boundary_vertex(mesh: "Mesh", v: int) -> bool:
+def is_boundary_vertex(ref: MeshRef, v: int) -> bool:
     """Whether vertex ``v`` has a free outgoing half-edge, or is isolated (as in OpenMesh).
 
     O(1): by the boundary convention ``v.halfedge`` is free if any is.
     """
-    rows = _rows(mesh, "nav_vfree", _build_vfree, {"i": v})
+    rows = _rows(ref, "nav_vfree", _build_vfree, {"i": v})
     if not rows:
-        raise missing(mesh, "vertex", v)
+        raise missing(ref, "vertex", v)
     return rows[0][0] is None or rows[0][1] is None
 
 
@@ -243,14 +240,14 @@ def _build_ring():
     return indexed_by(stmt, _H, "ix_halfedges_polygon")
 
 
-def ring(mesh: "Mesh", p: int) -> list[tuple]:
+def ring(ref: MeshRef, p: int) -> list[tuple]:
     """Half-edges of polygon ``p`` as ``(id, next, origin, edge, twin_polygon)``.
 
     In ``next`` order from ``p.halfedge``; one query for the whole ring.
     """
-    rows = _rows(mesh, "nav_ring", _build_ring, {"i": p})
+    rows = _rows(ref, "nav_ring", _build_ring, {"i": p})
     if not rows:
-        raise missing(mesh, "polygon", p)
+        raise missing(ref, "polygon", p)
     start = rows[0][0]
     by_id = {r[1]: r[1:] for r in rows}
     ordered = []
@@ -273,11 +270,11 @@ def _build_p():
     return sa.select(pol.c.halfedge).where(pol.c.mesh_id == sa.bindparam("m"), pol.c.id == sa.bindparam("i"))
 
 
-def polygon_halfedge(mesh: "Mesh", p: int) -> int:
+def polygon_halfedge(ref: MeshRef, p: int) -> int:
     """The half-edge stored for polygon ``p``."""
-    rows = _rows(mesh, "nav_p", _build_p, {"i": p})
+    rows = _rows(ref, "nav_p", _build_p, {"i": p})
     if not rows:
-        raise missing(mesh, "polygon", p)
+        raise missing(ref, "polygon", p)
     return rows[0][0]
 
 
@@ -296,11 +293,11 @@ def _build_e():
     )
 
 
-def edge_row(mesh: "Mesh", e: int) -> tuple:
+def edge_row(ref: MeshRef, e: int) -> tuple:
     """``(h, twin, origin(h), origin(twin), polygon(h), polygon(twin))`` of edge ``e``, ``h`` its half-edge."""
-    rows = _rows(mesh, "nav_e", _build_e, {"i": e})
+    rows = _rows(ref, "nav_e", _build_e, {"i": e})
     if not rows:
-        raise missing(mesh, "edge", e)
+        raise missing(ref, "edge", e)
     return rows[0]
 
 
@@ -319,22 +316,22 @@ def _build_find():
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def find_halfedge(mesh: "Mesh", a: int, b: int) -> int | None:
+def find_halfedge(ref: MeshRef, a: int, b: int) -> int | None:
     """A half-edge from vertex ``a`` to vertex ``b``, a free one if any (lowest id); ``None`` if none."""
-    exists(mesh, "vertex", a)
-    exists(mesh, "vertex", b)
-    rows = _rows(mesh, "nav_find", _build_find, {"a": a, "b": b})
+    exists(ref, "vertex", a)
+    exists(ref, "vertex", b)
+    rows = _rows(ref, "nav_find", _build_find, {"a": a, "b": b})
     return rows[0][0] if rows else None
 
 
-def ids(mesh: "Mesh", kind: str) -> list[int]:
+def ids(ref: MeshRef, kind: str) -> list[int]:
     """Ids of every element of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``), ascending."""
     table = _TABLES[kind]
 
     def build():
         return sa.select(table.c.id).where(table.c.mesh_id == sa.bindparam("m")).order_by(table.c.id)
 
-    found = [r[0] for r in _rows(mesh, ("nav_ids", kind), build, {})]
-    if not found and not _rows(mesh, "nav_mesh", _build_mesh, {}):
-        raise mesh.session.missing(mesh.ref)
+    found = [r[0] for r in _rows(ref, ("nav_ids", kind), build, {})]
+    if not found and not _rows(ref, "nav_mesh", _build_mesh, {}):
+        raise ref.session.missing(ref)
     return found

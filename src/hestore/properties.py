@@ -19,7 +19,7 @@ write that the flush turns into one statement per batch.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import sqlalchemy as sa
@@ -28,9 +28,7 @@ from hestore import schema, values
 from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError, shown
 from hestore.unitofwork import UNSET, BulkValues
 from hestore.values import KINDS, Property
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = [
     "add_property",
@@ -61,14 +59,14 @@ def _kind(kind: object) -> str:
     return values.check_choice(kind, KINDS, "an element kind")
 
 
-def _missing(mesh: "Mesh", kind: str, name: object) -> PropertyNotFoundError:
-    return PropertyNotFoundError(f"mesh {mesh.name!r} has no {kind} property named {shown(name)}")
+def _missing(ref: MeshRef, kind: str, name: object) -> PropertyNotFoundError:
+    return PropertyNotFoundError(f"mesh {ref.name!r} has no {kind} property named {shown(name)}")
 
 
-def _declared(mesh: "Mesh", catalogue: dict, kind: str, name: object) -> Property:
+def _declared(ref: MeshRef, catalogue: dict, kind: str, name: object) -> Property:
     prop = catalogue.get((kind, name)) if isinstance(name, str) else None
     if prop is None:
-        raise _missing(mesh, kind, name)
+        raise _missing(ref, kind, name)
     return prop
 
 
@@ -77,13 +75,14 @@ def _declared(mesh: "Mesh", catalogue: dict, kind: str, name: object) -> Propert
 
 
 def add_property(
-    mesh: "Mesh", kind: str, name: str, dtype: str, *, shape: tuple = (), default: Any = None
+    ref: MeshRef, kind: str, name: str, dtype: str, *, shape: tuple = (), default: Any = None
 ) -> Property:
     """Declare a property on every element of a kind, present and future.
 
     Parameters
     ----------
-    mesh : Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     kind : {"vertex", "halfedge", "edge", "polygon"}
         ``"halfedge"`` properties are per corner: a corner's value lives on
         the half-edge of the polygon whose origin is that corner.
@@ -128,11 +127,11 @@ def add_property(
     kind, name, dtype, shape = values.check_spec(kind, name, dtype, shape)
     spec = Property(kind, name, dtype, shape, None)
     default = values.check_value(spec, default, "the default")
-    with mesh.session.editing(mesh.ref) as uow:
+    with ref.session.editing(ref) as uow:
         return uow.add_property(Property(kind, name, dtype, shape, default))
 
 
-def remove_property(mesh: "Mesh", kind: str, name: str) -> None:
+def remove_property(ref: MeshRef, kind: str, name: str) -> None:
     """Remove a property and all its values.
 
     Examples
@@ -145,8 +144,8 @@ def remove_property(mesh: "Mesh", kind: str, name: str) -> None:
     {}
     """
     kind = _kind(kind)
-    with mesh.session.editing(mesh.ref) as uow:
-        uow.remove_property(_declared(mesh, uow.catalogue(), kind, name))
+    with ref.session.editing(ref) as uow:
+        uow.remove_property(_declared(ref, uow.catalogue(), kind, name))
 
 
 def _build_catalogue(kind: str):
@@ -158,7 +157,7 @@ def _build_catalogue(kind: str):
     return build
 
 
-def properties(mesh: "Mesh", kind: str) -> dict[str, Property]:
+def properties(ref: MeshRef, kind: str) -> dict[str, Property]:
     """The properties declared on a kind, by name, in the order they were declared.
 
     Examples
@@ -170,10 +169,10 @@ def properties(mesh: "Mesh", kind: str) -> dict[str, Property]:
     {'uv': Property(kind='halfedge', name='uv', dtype='float64', shape=(2,), default=None)}
     """
     kind = _kind(kind)
-    rows = mesh.session.fetch(mesh.ref, ("catalogue", kind), _build_catalogue(kind), {})
+    rows = ref.session.fetch(ref, ("catalogue", kind), _build_catalogue(kind), {})
     found = {row[2]: values.property_of(*row) for row in rows}
     if not found:
-        mesh.revision  # noqa: B018 - raises MeshNotFoundError for a deleted mesh
+        ref.session.require(ref)  # a deleted mesh is MeshNotFoundError, not an empty catalogue
     return found
 
 
@@ -201,7 +200,7 @@ def _build_values(table: sa.Table):
     return build
 
 
-def value(mesh: "Mesh", kind: str, i: int, name: str) -> Any:
+def value(ref: MeshRef, kind: str, i: int, name: str) -> Any:
     """Element ``i``'s value of a property: what ``handle[name]`` returns.
 
     A tuple for shaped properties; the default where none is set (None
@@ -214,25 +213,25 @@ def value(mesh: "Mesh", kind: str, i: int, name: str) -> Any:
     ElementNotFoundError
         The element does not exist.
     """
-    session = mesh.session
+    session = ref.session
     try:
         values.check_text(name, "a property name")  # what reaches SQL: no name holds a NUL or a lone surrogate
     except InvalidInputError:
-        raise _missing(mesh, kind, name) from None
-    found = session.fetch(mesh.ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
+        raise _missing(ref, kind, name) from None
+    found = session.fetch(ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
     if not found:
-        mesh.revision  # noqa: B018 - a deleted mesh raises MeshNotFoundError, not this
-        raise _missing(mesh, kind, name)
+        ref.session.require(ref)  # a deleted mesh is MeshNotFoundError, not this
+        raise _missing(ref, kind, name)
     *row, exists = found[0]
     if not exists:
-        raise ElementNotFoundError(f"{_WHAT[kind]} {i} does not exist in mesh {mesh.name!r}")
+        raise ElementNotFoundError(f"{_WHAT[kind]} {i} does not exist in mesh {ref.name!r}")
     prop = values.property_of(*row)
     table = values.table_of(prop.dtype)
-    rows = session.fetch(mesh.ref, ("values", table.name), _build_values(table), {"q": prop.id, "i": i})
+    rows = session.fetch(ref, ("values", table.name), _build_values(table), {"q": prop.id, "i": i})
     return values.value_of(prop, rows)
 
 
-def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
+def set_value(ref: MeshRef, kind: str, i: int, name: str, new: Any) -> None:
     """Set element ``i``'s value of a property (None: unset, back to the default).
 
     An edit like any other: atomic, transactional, counted in the revision.
@@ -247,8 +246,8 @@ def set_value(mesh: "Mesh", kind: str, i: int, name: str, new: Any) -> None:
         The value does not fit the property's dtype or shape; the message
         names the property and the element.
     """
-    with mesh.session.editing(mesh.ref) as uow:
-        prop = _declared(mesh, uow.catalogue(), kind, name)
+    with ref.session.editing(ref) as uow:
+        prop = _declared(ref, uow.catalogue(), kind, name)
         checked = values.check_value(prop, new, f"{_WHAT[kind]} {i}")
         uow.set_value(prop, i, UNSET if checked is None else values.rows(prop, checked))
 
@@ -265,17 +264,17 @@ def catalogue_in(snap, mesh_id: int) -> dict[tuple[str, str], Property]:
     return {(prop.kind, prop.name): prop for prop in found}
 
 
-def array_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray):
+def array_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray):
     """The values of ``prop`` for the live elements ``ids`` (sorted), read set-based in a snapshot.
 
     What `property_array` returns for them (masked where unset without a
     default); graph views call it in their own snapshot, so that their
     attributes are of the same state as their connectivity.
     """
-    return _values_in(snap, mesh, prop, ids)[1]
+    return _values_in(snap, ref, prop, ids)[1]
 
 
-def _values_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray | None) -> tuple[np.ndarray, Any]:
+def _values_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray | None) -> tuple[np.ndarray, Any]:
     """``(ids, values)`` of `array_in`; without ``ids``, every live element's, read in the same statement."""
     t = _TABLE[prop.kind]
     own_ids = [] if ids is not None else [(t, [t.c.id])]
@@ -284,7 +283,7 @@ def _values_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray | None) -> tu
     if prop.dtype == "str":
         if ids is None:
             [[ids]] = snap.columns(own_ids)
-        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == mesh.id, *mine)
+        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == ref.id, *mine)
         rows = snap.rows(stmt)
         row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
         row_parts = np.zeros(len(rows), dtype=np.int64)
@@ -300,7 +299,7 @@ def _values_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray | None) -> tu
             column = table.c[f"v{c}"]
             if prop.dtype != "float64":
                 comps.append(sa.func.coalesce(column, 0))
-            elif mesh.session.is_sqlite:
+            elif ref.session.is_sqlite:
                 comps.append(sa.func.coalesce(column, 0.0))
                 bit = sa.type_coerce(column.is_(None), sa.Integer) * (1 << c)  # SQLite: a comparison is 0 or 1
                 nulls = bit if nulls is None else nulls + bit
@@ -324,19 +323,19 @@ def _values_in(snap, mesh: "Mesh", prop: Property, ids: np.ndarray | None) -> tu
     return ids, values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
 
 
-def _read(mesh: "Mesh", kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
+def _read(ref: MeshRef, kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
     """The property, the live ids of its kind and the array of its values, read in one state."""
     kind = _kind(kind)
     if not isinstance(name, str):
-        raise _missing(mesh, kind, name)
-    with mesh.session.snapshot(mesh.ref) as snap:
-        prop = catalogue_in(snap, mesh.id).get((kind, name))
+        raise _missing(ref, kind, name)
+    with ref.session.snapshot(ref) as snap:
+        prop = catalogue_in(snap, ref.id).get((kind, name))
         if prop is None:
-            raise _missing(mesh, kind, name)
-        return (prop, *_values_in(snap, mesh, prop, None))
+            raise _missing(ref, kind, name)
+        return (prop, *_values_in(snap, ref, prop, None))
 
 
-def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+def property_array(ref: MeshRef, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Every live element's value of a property: ``(ids, values)`` in id order.
 
     ``values`` has shape ``(n,) + shape`` and the property's dtype (object
@@ -354,7 +353,7 @@ def property_array(mesh: "Mesh", kind: str, name: str) -> tuple[np.ndarray, np.n
     >>> ids.tolist(), t.tolist()
     ([0, 1, 2], [-1.0, 21.5, -1.0])
     """
-    _, ids, array = _read(mesh, kind, name)
+    _, ids, array = _read(ref, kind, name)
     return ids, array
 
 
@@ -375,28 +374,29 @@ def _ids(ids: object, kind: str) -> np.ndarray:
     return arr
 
 
-def _live_check(mesh: "Mesh", kind: str, ids: np.ndarray) -> bool:
+def _live_check(ref: MeshRef, kind: str, ids: np.ndarray) -> bool:
     """Raise unless every id is a live element of ``kind``; return whether they are all of them."""
     t = _TABLE[kind]
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         [[live]] = snap.columns([(t, [t.c.id])])
     at = np.searchsorted(live, ids)
     ok = at < len(live)
     ok[ok] = live[at[ok]] == ids[ok]
     if not ok.all():
         raise ElementNotFoundError(
-            f"{_WHAT[kind]} {int(ids[~ok][0])} does not exist in mesh {mesh.name!r} "
+            f"{_WHAT[kind]} {int(ids[~ok][0])} does not exist in mesh {ref.name!r} "
             f"({int((~ok).sum())} of the {len(ids)} ids do not)"
         )
     return len(ids) == len(live)
 
 
-def set_property_array(mesh: "Mesh", kind: str, name: str, ids: object, new: object) -> None:
+def set_property_array(ref: MeshRef, kind: str, name: str, ids: object, new: object) -> None:
     """Set many elements' values of a property in one set-based write.
 
     Parameters
     ----------
-    mesh : Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     kind, name
         The property.
     ids : array_like of int
@@ -423,26 +423,26 @@ def set_property_array(mesh: "Mesh", kind: str, name: str, ids: object, new: obj
     """
     kind = _kind(kind)
     ids = _ids(ids, kind)
-    session = mesh.session
+    session = ref.session
     with session.scope():
-        session.lock(mesh.ref)
-        prop = _read_spec(mesh, kind, name)
+        session.lock(ref)
+        prop = _read_spec(ref, kind, name)
         data, unset = values.check_array(prop, new, len(ids))
         if not len(ids):
             return  # nothing to write is no change: the revision stays
-        every = _live_check(mesh, kind, ids)
+        every = _live_check(ref, kind, ids)
         keep = slice(None) if unset is None else ~unset
         columns = values.columns_of(prop, ids[keep], data[keep])
         gone = None if unset is None else ids[unset]
-        with session.editing(mesh.ref) as uow:
-            current = _declared(mesh, uow.catalogue(), kind, name)
+        with session.editing(ref) as uow:
+            current = _declared(ref, uow.catalogue(), kind, name)
             uow.stage(BulkValues(current, ids, columns, gone, every and gone is None))
 
 
-def _read_spec(mesh: "Mesh", kind: str, name: object) -> Property:
-    found = properties(mesh, kind).get(name) if isinstance(name, str) else None
+def _read_spec(ref: MeshRef, kind: str, name: object) -> Property:
+    found = properties(ref, kind).get(name) if isinstance(name, str) else None
     if found is None:
-        raise _missing(mesh, kind, name)
+        raise _missing(ref, kind, name)
     return found
 
 
@@ -474,7 +474,7 @@ def check_position(position: object) -> tuple[float, float, float] | None:
     return xyz  # type: ignore[return-value]
 
 
-def set_position(mesh: "Mesh", v: int, position: object) -> None:
+def set_position(ref: MeshRef, v: int, position: object) -> None:
     """Move vertex ``v`` to ``position`` (None: it has no position).
 
     Examples
@@ -486,11 +486,11 @@ def set_position(mesh: "Mesh", v: int, position: object) -> None:
     (1.0, 2.0, 3.0)
     """
     xyz = check_position(position)
-    with mesh.session.editing(mesh.ref) as uow:
+    with ref.session.editing(ref) as uow:
         uow.set_position(v, xyz)
 
 
-def set_positions(mesh: "Mesh", vertices: object, positions: object) -> None:
+def set_positions(ref: MeshRef, vertices: object, positions: object) -> None:
     """Move many vertices in one set-based write.
 
     Parameters
@@ -522,12 +522,12 @@ def set_positions(mesh: "Mesh", vertices: object, positions: object) -> None:
         row = int(np.flatnonzero(bad)[0])
         raise InvalidInputError(f"position of vertex {int(ids[row])} is {xyz[row].tolist()}: {what}")
     if not len(ids):
-        mesh.revision  # noqa: B018 - still raises for a deleted mesh; nothing to write is no change
+        ref.session.require(ref)  # still raises for a deleted mesh; nothing to write is no change
         return
-    session = mesh.session
+    session = ref.session
     with session.scope():
-        session.lock(mesh.ref)
-        _live_check(mesh, "vertex", ids)
+        session.lock(ref)
+        _live_check(ref, "vertex", ids)
         columns = {"id": ids, "x": xyz[:, 0].copy(), "y": xyz[:, 1].copy(), "z": xyz[:, 2].copy()}
-        with session.editing(mesh.ref) as uow:
+        with session.editing(ref) as uow:
             uow.stage(BulkValues(None, ids, columns, None))

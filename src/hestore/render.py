@@ -40,7 +40,7 @@ Examples
 >>> store = hestore.open("sqlite://")
 >>> square = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
 >>> mesh = store.import_arrays("square", square, [[0, 1, 2], [0, 2, 3]]).mesh
->>> ax = plot(mesh)
+>>> ax = plot(mesh.ref)
 >>> sorted(c.get_gid() for c in ax.collections)
 ['boundary_loops', 'polygons']
 >>> len(ax.collections[0].get_paths())
@@ -53,7 +53,7 @@ import math
 import os
 import tempfile
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -65,9 +65,7 @@ from hestore.io import file_errors
 from hestore.progress import check_progress
 from hestore.urls import check_path
 from hestore.values import check_choice, check_flag, check_integer, check_items, check_real
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = [
     "VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "MAX_SIDE", "DPI", "LABEL_VERTICES", "LAYERS", "plot",
@@ -161,6 +159,7 @@ class _Scene:
     p_id: np.ndarray
     corners: np.ndarray  # vertex rows of each polygon's corners, polygon after polygon
     offsets: np.ndarray  # polygon i's corners are corners[offsets[i]:offsets[i + 1]]
+    revision: int  # the revision the snapshot read
 
 
 def _rows(index: Index, refs: np.ndarray) -> np.ndarray:
@@ -168,15 +167,16 @@ def _rows(index: Index, refs: np.ndarray) -> np.ndarray:
     return np.where(ok, rows, -1)
 
 
-def _read(mesh: "Mesh") -> _Scene:
+def _read(ref: MeshRef) -> _Scene:
     h, p = schema.halfedges, schema.polygons
     # The half-edges' polygon column is not read: the polygon loops walked from the polygons' half-edges
     # are exactly the half-edges that have one (on a valid mesh; `check` reports any other), and reading a
     # column of a few million rows costs more than the walk. The edges table is read only for violations.
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         (v_id, x, y, z, missing), (he_id, origin, nxt, twin), (p_id, p_he) = snap.columns(
             [position_request(), (h, [h.c.id, h.c.origin, h.c.next, h.c.twin]), (p, [p.c.id, p.c.halfedge])]
         )
+        revision = snap.revision
     vertices, halfedges = Index(v_id), Index(he_id)
     origin_row = _rows(vertices, origin)
     twin_row = _rows(halfedges, twin)
@@ -191,7 +191,7 @@ def _read(mesh: "Mesh") -> _Scene:
         free[loops.indices] = False
     return _Scene(
         v_id, position_array(x, y, z, missing), he_id, origin_row, target_row, free, next_row, twin_row,
-        p_id, corners, offsets,
+        p_id, corners, offsets, revision,
     )
 
 
@@ -258,7 +258,7 @@ def _normals(xyz: np.ndarray, corners: np.ndarray, offsets: np.ndarray) -> np.nd
 
 
 def plot(
-    mesh: "Mesh",
+    ref: MeshRef,
     ax: Any = None,
     *,
     view: object = None,
@@ -271,8 +271,8 @@ def plot(
 
     Parameters
     ----------
-    mesh : hestore.Mesh
-        The mesh, or a view of a past revision (`Mesh.at`).
+    ref : hestore.session.MeshRef
+        The mesh, or a view of a past revision (`Mesh.at`): its identity, `Mesh.ref`.
     ax : matplotlib.axes.Axes, optional
         Where to draw; a new figure's Axes (through ``pyplot``) when None.
     view : str or (float, float), optional
@@ -319,12 +319,20 @@ def plot(
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
     >>> _ = mesh.add_edge(mesh.vertex(1), mesh.add_vertex((2, 0, 0)))
-    >>> ax = plot(mesh, labels=True)
+    >>> ax = plot(mesh.ref, labels=True)
     >>> sorted(c.get_gid() for c in ax.collections)
     ['boundary_loops', 'polygons', 'wire_edges']
     >>> sorted(t.get_text() for t in ax.texts if t.get_gid() == "labels")
     ['0', '1', '2', '3']
     """
+    return _draw(ref, ax, view=view, labels=labels, check=check, max_polygons=max_polygons, progress=progress)[0]
+
+
+def _draw(
+    ref: MeshRef, ax: Any = None, *, view: object = None, labels: bool | str = False, check: bool | None = None,
+    max_polygons: int = MAX_POLYGONS, progress: Progress | None = None,
+) -> tuple[Any, _Scene]:
+    """`plot`, returning the Axes and the scene it drew (what `render`'s title counts)."""
     mpl = _require()
     from matplotlib.axes import Axes
 
@@ -341,7 +349,7 @@ def plot(
     toward = None if view is None else _toward(view)
     report = check_progress(progress)
     report("read", 0, 1)
-    scene = _read(mesh)
+    scene = _read(ref)
     report("read", 1, 1)
     notes: list[str] = []
     violations: list[Violation] = []
@@ -351,7 +359,7 @@ def plot(
             notes.append(f"not checked ({len(scene.p_id):,} polygons; check=True checks)")
     if check:
         report("check", 0, 1)
-        violations = validation.check(mesh)
+        violations = validation.check(ref)
         report("check", 1, 1)
 
     if ax is None:
@@ -383,7 +391,7 @@ def plot(
     elif not len(scene.v_id):
         notes.append("the mesh is empty")
     _polygons(mpl, ax, scene, screen, placed, light, planar is not None, max_polygons, pixels_per_unit, notes, report)
-    handles = _highlights(mpl, ax, mesh, scene, screen, placed, violations)
+    handles = _highlights(mpl, ax, ref, scene, screen, placed, violations)
     if _LABELS[labels] & {"vertices"}:
         _labels(ax, scene, screen, placed, notes)
     if _LABELS[labels] & {"halfedges"}:
@@ -395,7 +403,7 @@ def plot(
     if notes:
         ax.text(0.01, 0.01, "\n".join(notes), transform=ax.transAxes, fontsize="x-small", va="bottom",
                 color="0.3", gid="notes")
-    return ax
+    return ax, scene
 
 
 def _polygons(
@@ -512,7 +520,7 @@ def _segments(screen, start: np.ndarray, end: np.ndarray) -> np.ndarray:
     return np.stack([screen[start, :2], screen[end, :2]], axis=1)
 
 
-def _highlights(mpl, ax, mesh: "Mesh", scene: _Scene, screen, placed, violations: list[Violation]) -> list:
+def _highlights(mpl, ax, ref: MeshRef, scene: _Scene, screen, placed, violations: list[Violation]) -> list:
     """Boundary loops, wire edges, isolated and pinched vertices, violations: one artist each; legend handles."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -564,7 +572,7 @@ def _highlights(mpl, ax, mesh: "Mesh", scene: _Scene, screen, placed, violations
                                   label=f"pinched vertices ({len(pinched):,})"))
 
     if violations:
-        _violations(mpl, ax, mesh, scene, screen, placed, ends_placed, violations)
+        _violations(mpl, ax, ref, scene, screen, placed, ends_placed, violations)
         codes = sorted({v.code for v in violations})
         handles.append(Patch(color=_VIOLATION, label=f"check(): {len(violations):,} violation(s): {', '.join(codes)}"))
     return handles
@@ -584,7 +592,7 @@ def _loop_labels(free: np.ndarray, nxt: np.ndarray) -> np.ndarray:
 
 
 def _violations(
-    mpl, ax, mesh: "Mesh", scene: _Scene, screen, placed, ends_placed, violations: list[Violation]
+    mpl, ax, ref: MeshRef, scene: _Scene, screen, placed, ends_placed, violations: list[Violation]
 ) -> None:
     """The elements the violations name, in red, as one collection (polygons, lines and points in one path set)."""
     ids: dict[str, list[int]] = {"vertex": [], "halfedge": [], "edge": [], "polygon": []}
@@ -600,7 +608,7 @@ def _violations(
     edge_halfedges = np.zeros(0, dtype=np.int64)
     if ids["edge"]:
         e = schema.edges
-        with mesh.session.snapshot(mesh.ref) as snap:
+        with ref.session.snapshot(ref) as snap:
             [(e_id, e_halfedge)] = snap.columns([(e, [e.c.id, e.c.halfedge])])
         edge_halfedges = _rows(Index(scene.he_id), e_halfedge[found(e_id, ids["edge"])])
     lines = np.unique(np.r_[halfedges, edge_halfedges[edge_halfedges >= 0]]).astype(np.int64)
@@ -689,7 +697,7 @@ def _umask() -> int:
 
 
 def render(
-    mesh: "Mesh",
+    ref: MeshRef,
     path,
     *,
     size: tuple[int, int] = (1200, 900),
@@ -705,8 +713,8 @@ def render(
 
     Parameters
     ----------
-    mesh : hestore.Mesh
-        The mesh, or a view of a past revision (`Mesh.at`).
+    ref : hestore.session.MeshRef
+        The mesh, or a view of a past revision (`Mesh.at`): its identity, `Mesh.ref`.
     path : str or os.PathLike
         Ends in ``.png`` or ``.svg``; its folder must exist.
     size : (int, int)
@@ -734,10 +742,10 @@ def render(
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
     >>> path = os.path.join(tempfile.mkdtemp(), "t.png")
-    >>> render(mesh, path, size=(200, 150))
+    >>> render(mesh.ref, path, size=(200, 150))
     >>> open(path, "rb").read(8) == b"\\x89PNG\\r\\n\\x1a\\n"
     True
-    >>> render(mesh, path[:-4] + ".jpg")
+    >>> render(mesh.ref, path[:-4] + ".jpg")
     Traceback (most recent call last):
     ...
     hestore.errors.InvalidInputError: cannot render to '...t.jpg': the file name must end in .png or .svg
@@ -759,12 +767,11 @@ def render(
     # A Figure without pyplot: no global state, no GUI backend, nothing left open.
     figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     ax = figure.add_axes((0.01, 0.01, 0.98, 0.92 if title else 0.98))
-    plot(mesh, ax, progress=progress, **options)
+    _, scene = _draw(ref, ax, progress=progress, **options)
     if title:
         # On the figure, not the Axes: an equal-aspect Axes shrinks to the mesh, and its title with it.
-        counts = mesh.counts()
-        figure.suptitle(f"{mesh.name} (revision {mesh.revision}): {counts.vertices:,} vertices, "
-                        f"{counts.edges:,} edges, {counts.polygons:,} polygons", fontsize="small")
+        figure.suptitle(f"{ref.name} (revision {scene.revision}): {len(scene.v_id):,} vertices, "
+                        f"{len(scene.he_id) // 2:,} edges, {len(scene.p_id):,} polygons", fontsize="small")
     report("write", 0, 1)
     fd, temporary = -1, None
     try:

@@ -87,17 +87,32 @@ from hestore.unitofwork import UnitOfWork
 __all__ = ["Session", "MeshRef", "Snapshot"]
 
 class MeshRef:
-    """A mesh's identity for one session: its id, its name, and whether it still exists here.
+    """A mesh's identity for one session: what every algorithm below the facade is handed.
 
-    All handles of one mesh share its `MeshRef`. ``alive`` turns False when
-    the transaction that created the mesh is rolled back.
+    Its id, its name, its policy, the session it belongs to (the door for
+    every read and write of it), and whether it still exists here. All
+    handles of one mesh share its `MeshRef`. ``alive`` turns False when the
+    transaction that created the mesh is rolled back.
     """
 
-    __slots__ = ("id", "name", "alive", "revision", "base", "__weakref__")
+    __slots__ = ("session", "id", "name", "allow_loops", "allow_multi_edges", "alive", "revision", "base",
+                 "__weakref__")
 
-    def __init__(self, mesh_id: int, name: str, revision: int | None = None, base: "MeshRef | None" = None) -> None:
+    def __init__(
+        self,
+        session: "Session",
+        mesh_id: int,
+        name: str,
+        allow_loops: bool,
+        allow_multi_edges: bool,
+        revision: int | None = None,
+        base: "MeshRef | None" = None,
+    ) -> None:
+        self.session = session
         self.id = mesh_id
         self.name = name
+        self.allow_loops = allow_loops
+        self.allow_multi_edges = allow_multi_edges
         self.alive = True
         #: None for the mesh itself; ``r`` for a read-only view of its revision ``r`` (`Session.view`).
         self.revision = revision
@@ -288,20 +303,36 @@ class Session:
         """The error for a mesh that is not in the database (deleted, or never committed)."""
         return MeshNotFoundError(f"mesh {ref.name!r} has been deleted from {self.shown_url}")
 
+    def require(self, ref: MeshRef) -> None:
+        """Raise `MeshNotFoundError` unless the mesh is in the database as the open transaction sees it.
+
+        For a view, `RevisionNotFoundError` too unless its revision is still
+        kept. What an empty answer means is told apart with it: no element,
+        or no mesh.
+        """
+        self._alive(ref)
+        with self._guard(f"could not read mesh {ref.name!r}"):
+            if self._uows:
+                self._flush()
+            if ref.revision is None:
+                self._history_row(ref)
+            else:
+                self._kept(ref, ref.revision)
+
     # -- mesh identities -----------------------------------------------------
 
-    def ref(self, mesh_id: int, name: str) -> MeshRef:
+    def ref(self, mesh_id: int, name: str, allow_loops: bool, allow_multi_edges: bool) -> MeshRef:
         """The identity of a stored mesh, shared by every handle of it in this session."""
         ref = self._refs.get(mesh_id)
         if ref is None or not ref.alive:
-            ref = self._refs[mesh_id] = MeshRef(mesh_id, name)
+            ref = self._refs[mesh_id] = MeshRef(self, mesh_id, name, allow_loops, allow_multi_edges)
         else:
             ref.name = name
         return ref
 
-    def new_ref(self, mesh_id: int, name: str) -> MeshRef:
+    def new_ref(self, mesh_id: int, name: str, allow_loops: bool, allow_multi_edges: bool) -> MeshRef:
         """The identity of a mesh created in the open transaction: it dies if that is rolled back."""
-        ref = self._refs[mesh_id] = MeshRef(mesh_id, name)
+        ref = self._refs[mesh_id] = MeshRef(self, mesh_id, name, allow_loops, allow_multi_edges)
         self._born.append(ref)
         return ref
 
@@ -813,7 +844,7 @@ class Session:
             if self._uows:
                 self._flush()
             current = self._kept(ref, revision)
-        view = MeshRef(ref.id, ref.name, revision=revision, base=ref)
+        view = MeshRef(self, ref.id, ref.name, ref.allow_loops, ref.allow_multi_edges, revision=revision, base=ref)
         if revision == current and ref.id in self._changed:
             self._born.append(view)  # a revision of the open transaction: a rollback takes it away
         views = [w for w in self._views.get(ref.id, ()) if w() is not None]
@@ -897,31 +928,6 @@ class Session:
         if row is None:
             row = self._conn.execute(sa.select(*(m.c[n] for n in names)).where(m.c.id == ref.id)).first()
         return dict(zip(names, row))
-
-    def copy_rows(self, source: MeshRef, target: MeshRef, table: sa.Table) -> None:
-        """Copy the rows of ``table`` from one mesh (or a view of its past) to another, as its revision 1.
-
-        One ``INSERT ... SELECT``, reading the source as of its view's
-        revision; the copy starts without history.
-        """
-        cols = [c for c in table.c if c.name not in ("mesh_id", "rev")]
-        rows = sa.select(sa.literal(target.id, sa.Integer), *cols, sa.literal(1, sa.BigInteger)).where(
-            table.c.mesh_id == source.id
-        )
-        if source.revision is not None:
-            rows = as_of(rows, sa.literal(source.revision))
-        with self._guard(f"could not copy mesh {source.name!r}"):
-            self._conn.execute(table.insert().from_select([table.c.mesh_id, *cols, table.c.rev], rows))
-
-    def add_revision(self, ref: MeshRef, number: int, message: str | None, changes: str | None = None) -> None:
-        """Record revision ``number`` of a mesh written outside its unit of work (a copy), with its changes."""
-        with self._guard(f"could not write the history of mesh {ref.name!r}"):
-            self._conn.execute(
-                schema.revisions.insert().values(
-                    mesh_id=ref.id, number=number, committed_at=datetime.now(timezone.utc), message=message,
-                    changes=changes,
-                )
-            )
 
     def restorable(self, ref: MeshRef, action: str) -> None:
         """Raise unless the mesh may be restored now: `InvalidInputError` in a block that changed it already."""

@@ -1,23 +1,27 @@
 """The store: a database of named meshes, and its transactions.
 
-This module owns the mesh catalogue — creating, finding, listing and deleting
-meshes by name — and `open`, the entry point. Everything that touches the
-connection (transactions, locks, units of work, flushing, threads, error
-translation) is the `hestore.session.Session` the store holds as
-`Store.session`; the store only says what to do in each scope.
+This module owns the mesh catalogue — creating, finding, listing, renaming,
+copying and deleting meshes by name, and storing imports (it decides the
+name, creates the mesh and hands `hestore.bulk` the mesh to fill) — and
+`open`, the entry point. Its SQL is `hestore.catalogue`'s. Everything that
+touches the connection (transactions, locks, units of work, flushing,
+threads, error translation) is the `hestore.session.Session` the store
+holds as `Store.session`; the store only says what to do in each scope.
 
 A store belongs to the thread that opened it: open one per thread or process.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from contextlib import contextmanager
 from typing import Iterator
 
 import sqlalchemy as sa
 
-from hestore import bulk, interop, schema, urls, values
+from hestore import bulk, catalogue, interop, schema, urls, values
+from hestore import io as mesh_io
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, shown
 from hestore.journal import created_changes
 from hestore.mesh import Mesh
@@ -199,31 +203,10 @@ class Store:
         allow_loops = values.check_flag(allow_loops, "allow_loops")
         allow_multi_edges = values.check_flag(allow_multi_edges, "allow_multi_edges")
         history = values.check_flag(history, "history")
-        m = schema.meshes
         with self.session.scope() as conn:
-            if conn.execute(sa.select(m.c.id).where(m.c.name == name)).first() is not None:
-                raise MeshExistsError(f"a mesh named {name!r} already exists")
-            try:
-                mesh_id = conn.execute(
-                    m.insert()
-                    .values(
-                        name=name,
-                        allow_loops=allow_loops,
-                        allow_multi_edges=allow_multi_edges,
-                        revision=0,
-                        next_vertex=0,
-                        next_edge=0,
-                        next_polygon=0,
-                        next_property=0,
-                        history=history,
-                    )
-                    .returning(m.c.id)
-                ).scalar_one()
-            except sa.exc.IntegrityError:
-                # Another connection took the name between the check and the insert.
-                raise MeshExistsError(f"a mesh named {name!r} already exists") from None
-            ref = self.session.new_ref(mesh_id, name)
-        return Mesh(self, ref, allow_loops, allow_multi_edges)
+            mesh_id = catalogue.create(conn, name, allow_loops, allow_multi_edges, history)
+            ref = self.session.new_ref(mesh_id, name, allow_loops, allow_multi_edges)
+        return Mesh(self, ref)
 
     def mesh(self, name: str) -> Mesh:
         """The mesh called ``name``.
@@ -242,16 +225,13 @@ class Store:
         'part'
         """
         name = _checked_name(name)
-        m = schema.meshes
         with self.session.reading() as conn:
-            row = conn.execute(
-                sa.select(m.c.id, m.c.allow_loops, m.c.allow_multi_edges).where(m.c.name == name)
-            ).first()
-        if row is None:
+            entry = catalogue.find(conn, name)
+        if entry is None:
             known = self.meshes()
             hint = f"; meshes here: {', '.join(known[:10])}" if known else "; the store has no meshes"
             raise MeshNotFoundError(f"no mesh named {name!r} in {self.session.shown_url}{hint}")
-        return Mesh(self, self.session.ref(row.id, name), bool(row.allow_loops), bool(row.allow_multi_edges))
+        return Mesh(self, self.session.ref(entry.id, name, entry.allow_loops, entry.allow_multi_edges))
 
     def meshes(self) -> list[str]:
         """Names of all meshes, sorted.
@@ -264,9 +244,8 @@ class Store:
         >>> store.meshes()
         ['a', 'b']
         """
-        m = schema.meshes
         with self.session.reading() as conn:
-            return list(conn.execute(sa.select(m.c.name).order_by(m.c.name)).scalars())
+            return catalogue.names(conn)
 
     def delete_mesh(self, name: str) -> None:
         """Delete the mesh called ``name`` and all its elements.
@@ -310,15 +289,9 @@ class Store:
         mesh = self.mesh(name)
         if new_name == mesh.name:
             return mesh
-        m = schema.meshes
         with self.session.scope() as conn:
             self.session.lock(mesh.ref)
-            if conn.execute(sa.select(m.c.id).where(m.c.name == new_name)).first() is not None:
-                raise MeshExistsError(f"a mesh named {new_name!r} already exists")
-            try:
-                conn.execute(m.update().where(m.c.id == mesh.id).values(name=new_name))
-            except sa.exc.IntegrityError:
-                raise MeshExistsError(f"a mesh named {new_name!r} already exists") from None
+            catalogue.rename(conn, mesh.id, new_name)
             self.session.renamed(mesh.ref, new_name)
         return mesh
 
@@ -360,32 +333,21 @@ class Store:
         source = self.mesh(name)
         if revision is not None:
             revision = values.check_revision(revision)
-        m = schema.meshes
         with self.session.scope() as conn:
             # Locked: the tables are read by several statements, and must not change between them.
             self.session.lock(source.ref)
-            row = conn.execute(sa.select(m).where(m.c.id == source.id)).one()
+            row = catalogue.row(conn, source.id)
             at = row.revision if revision is None else revision
-            view = self.session.view(source.ref, at)  # checks that the revision is kept
+            self.session.view(source.ref, at)  # checks that the revision is kept
             copy = self.create_mesh(
                 new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges, history=row.history
             )
-            conn.execute(
-                m.update()
-                .where(m.c.id == copy.id)
-                .values(
-                    revision=1,
-                    next_vertex=row.next_vertex,
-                    next_edge=row.next_edge,
-                    next_polygon=row.next_polygon,
-                    next_property=row.next_property,
-                )
-            )
+            catalogue.copy_counters(conn, copy.id, row)
             for table in schema.VERSIONED:
-                self.session.copy_rows(view, copy.ref, table)
+                catalogue.copy_rows(conn, source.id, None if at == row.revision else at, copy.id, table)
             counts = copy.counts()
-            self.session.add_revision(
-                copy.ref, 1, f"copy of {source.name!r} at revision {at}",
+            catalogue.add_revision(
+                conn, copy.id, 1, f"copy of {source.name!r} at revision {at}",
                 created_changes(counts.vertices, counts.halfedges, counts.edges, counts.polygons),
             )
         return copy
@@ -393,34 +355,167 @@ class Store:
     # -- bulk ----------------------------------------------------------------------
 
     def import_arrays(self, name: str, positions, polygons, *, on_error: str = "raise", **options) -> bulk.ImportReport:
-        """Store a polygon soup as a new mesh; see `hestore.bulk.import_arrays`.
+        """Store a polygon soup as a new mesh, built set-based: one transaction, the whole mesh or nothing.
+
+        The result is the topology that `Mesh.add_polygon` would give, called
+        on the polygons one by one in order (up to the order of free gaps
+        around a vertex where several fans meet): vertex ``i`` is
+        ``positions[i]``, polygon ids follow input order among the polygons
+        kept, and vertices no polygon uses are kept as isolated vertices.
+        Every check is made, and every repair decided, before anything is
+        written (`hestore.bulk.build_arrays`).
+
+        Parameters
+        ----------
+        name : str
+            The new mesh's name.
+        positions : array_like, shape (V, 3) or (V, 2)
+            Finite coordinates.
+        polygons : array_like, shape (F, k), or sequence of sequences of int
+            Corners of each polygon, counter-clockwise, as row indices of
+            ``positions``.
+        on_error : {"raise", "skip", "split"}
+            What to do with a polygon the structure cannot take
+            (`hestore.bulk.ImportOptions`).
+        **options
+            The other `hestore.bulk.ImportOptions`: ``allow_loops``,
+            ``allow_multi_edges``, ``progress``, ``replace``, ``orient``,
+            ``history``.
+
+        Returns
+        -------
+        ImportReport
+
+        Raises
+        ------
+        InvalidInputError, HalfEdgeNotFreeError, NonManifoldError, PolicyError
+            With ``on_error="raise"``, for the first bad polygon; the error's
+            ``skipped`` attribute is its `SkippedPolygon`.
+        NonOrientableError
+            With ``orient=True``, a component that cannot be oriented.
+        MeshExistsError
+            A mesh of that name exists (and ``replace`` is not set).
 
         Examples
         --------
         >>> import hestore
         >>> store = hestore.open("sqlite://")
-        >>> store.import_arrays("tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).polygons
-        1
+        >>> square = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+        >>> report = store.import_arrays("square", square, [[0, 1, 2], [0, 2, 3]])
+        >>> report.polygons, report.edges, report.mesh.check()
+        (2, 5, [])
+        >>> report = store.import_arrays("bad", square, [[0, 1, 2], [0, 1, 3]], on_error="skip")
+        >>> report.polygons, report.skipped[0].index
+        (1, 1)
+        >>> report = store.import_arrays("kept", square, [[0, 1, 2], [0, 1, 3]], on_error="split")
+        >>> report.polygons, report.vertices, report.split
+        (2, 6, {0: [4], 1: [5]})
         """
-        return bulk.import_arrays(self, _checked_name(name), positions, polygons, on_error=on_error, **options)
+        options = bulk.ImportOptions(on_error=on_error, **options)
+        name = self._new_name(name, options)
+        return self._store(name, bulk.build_arrays(positions, polygons, options), options)
 
     def import_file(self, path, name: str | None = None, *, on_error: str = "raise", **options) -> bulk.ImportReport:
-        """Import an OFF, OBJ or PLY file as a new mesh (`hestore.bulk.import_file`), or STL, VTK, VTU through meshio.
+        """Import an OFF, OBJ or PLY file (ASCII or binary) as a new mesh, or an STL, VTK or VTU file through meshio.
 
-        The meshio formats (`hestore.interop.read_meshio_file`) take the
-        same options; their polygon cells become polygons.
+        The file's vertex and polygon order are kept, vertices are never
+        welded by position and polygons are never triangulated; see
+        `import_arrays` for what is built and how bad polygons are handled
+        (each `SkippedPolygon` carries its file line for ASCII files). A
+        PLY file's vertex and face properties and an OBJ file's corner
+        ``uv``/``normal`` become properties of the new mesh
+        (`hestore.bulk.build_file`). The meshio formats
+        (`hestore.interop.read_meshio_file`) take the same options, but for
+        ``progress``, which they do not report; their polygon cells become
+        polygons.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file; its format comes from its extension.
+        name : str, optional
+            The new mesh's name; by default the file name without extension.
+        on_error, **options
+            As for `import_arrays`.
+
+        Raises
+        ------
+        InvalidInputError
+            The file is malformed (bad header, non-numeric or non-finite
+            values, truncated): the message names the file and line. The file
+            cannot be read (missing, a folder, no permission: ``"cannot read
+            {path}: {reason}"``), the path cannot be one, or an option is
+            malformed. Nothing is stored.
+
+        Examples
+        --------
+        >>> import hestore, tempfile, pathlib
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "tri.off").write_text("OFF\\n3 1 0\\n0 0 0\\n1 0 0\\n0 1 0\\n3 0 1 2\\n")
+        >>> store = hestore.open("sqlite://")
+        >>> report = store.import_file(folder / "tri.off")
+        >>> report.mesh.name, report.vertices, report.polygons
+        ('tri', 3, 1)
         """
         path = urls.check_path(path)
-        if name is not None:
-            name = _checked_name(name)
+        options = bulk.ImportOptions(on_error=on_error, **options)
         if path.lower().endswith(interop.MESHIO_EXTENSIONS):
-            return interop.read_meshio_file(self, path, name, on_error=on_error, **options)
-        return bulk.import_file(self, path, name, on_error=on_error, **options)
+            name = self._new_name(bulk.name_of(path) if name is None else name, options)
+            silent = dataclasses.replace(options, progress=None)
+            return self._store(name, bulk.build_arrays(*interop.read_meshio_file(path), silent), options)
+        mesh_io.format_of(path)  # an unknown extension is refused before the name is looked at
+        name = self._new_name(bulk.name_of(path) if name is None else name, options)
+        return self._store(name, bulk.build_file(path, options), options)
 
     def import_trimesh(self, name: str, tm, **options) -> bulk.ImportReport:
-        """Store a ``trimesh.Trimesh`` as a new mesh; see `hestore.interop.import_trimesh`."""
-        return interop.import_trimesh(self, _checked_name(name), tm, **options)
+        """Store a ``trimesh.Trimesh`` as a new mesh, vertex ``i`` and face ``j`` in its order; see `import_arrays`.
+
+        Examples
+        --------
+        >>> import hestore, trimesh
+        >>> store = hestore.open("sqlite://")
+        >>> report = store.import_trimesh("box", trimesh.creation.box())
+        >>> report.polygons, report.mesh.stats().is_closed
+        (12, True)
+        """
+        return self.import_arrays(name, *interop.trimesh_soup(tm), **options)
 
     def import_meshio(self, name: str, m, **options) -> bulk.ImportReport:
-        """Store a ``meshio.Mesh`` of polygon cells as a new mesh; see `hestore.interop.import_meshio`."""
-        return interop.import_meshio(self, _checked_name(name), m, **options)
+        """Store a ``meshio.Mesh`` of polygon cells as a new mesh; see `hestore.interop.meshio_soup`, `import_arrays`.
+
+        Examples
+        --------
+        >>> import hestore, meshio
+        >>> store = hestore.open("sqlite://")
+        >>> m = meshio.Mesh([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [("triangle", [[0, 1, 2]])])
+        >>> store.import_meshio("t", m).polygons
+        1
+        """
+        return self.import_arrays(name, *interop.meshio_soup(m), **options)
+
+    def _new_name(self, name: object, options: bulk.ImportOptions) -> str:
+        """The name of a mesh an import makes, checked before anything is read or built.
+
+        Taken already is `MeshExistsError`, unless the import replaces it.
+        """
+        name = _checked_name(name)
+        if not options.replace and name in self.meshes():
+            raise MeshExistsError(f"a mesh named {name!r} already exists; choose another name")
+        return name
+
+    def _store(self, name: str, built: bulk.BuiltImport, options: bulk.ImportOptions) -> bulk.ImportReport:
+        """Create the mesh and write a built import into it, in one step; with ``replace`` the old mesh goes in it."""
+        session = self.session
+        outer = not session.in_transaction
+        with session.scope():
+            if options.replace and name in self.meshes():
+                self.delete_mesh(name)
+            mesh = self.create_mesh(
+                name, allow_loops=options.allow_loops, allow_multi_edges=options.allow_multi_edges,
+                history=options.history,
+            )
+            bulk.write(mesh.ref, built, options.progress)
+        if outer:
+            # Fresh statistics, so that the planner knows how large the tables just became.
+            session.analyze(bulk.WRITTEN)
+        return built.report(mesh)

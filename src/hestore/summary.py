@@ -42,18 +42,15 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
 from hestore.arrays import Index, component_roots, cycle_positions, cycles, dense, groups
-from hestore.handles import HalfEdge, Vertex
 from hestore.progress import check_progress
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = ["Stats", "stats", "boundary_loops", "components", "pinched_vertices", "fan_counts"]
 
@@ -196,7 +193,7 @@ class _Tables(NamedTuple):
     next: np.ndarray | None
 
 
-def _read(mesh: "Mesh", *, sides: bool, links: bool) -> _Tables:
+def _read(ref: MeshRef, *, sides: bool, links: bool) -> _Tables:
     """Read what a summary needs in one snapshot.
 
     Half-edge ids always; ``sides``: each half-edge's polygon, and ``next``
@@ -211,7 +208,7 @@ def _read(mesh: "Mesh", *, sides: bool, links: bool) -> _Tables:
     requests = [(h, columns)]
     if links:
         requests.append((v, [v.c.id]))
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         tables = snap.columns(requests)
     he_id, *more = tables[0]
     he_index = Index(he_id)
@@ -297,7 +294,7 @@ def fan_counts(origin: np.ndarray, twin: np.ndarray, free: np.ndarray, out_degre
     return np.where((links == out_degree) & (out_degree > 0), 1, corners - links)
 
 
-def pinched_vertices(mesh: "Mesh") -> list[int]:
+def pinched_vertices(ref: MeshRef) -> list[int]:
     """Ids of the vertices where more than one polygon fan meets (`Stats.pinched_vertices` counts them).
 
     Examples
@@ -308,15 +305,15 @@ def pinched_vertices(mesh: "Mesh") -> list[int]:
     >>> store = hestore.open("sqlite://")
     >>> xyz = [(0, 0, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 0), (1, -1, 0)]
     >>> mesh = store.import_arrays("bowtie", xyz, [[0, 1, 2], [0, 3, 4]]).mesh
-    >>> pinched_vertices(mesh)
+    >>> pinched_vertices(mesh.ref)
     [0]
     """
-    t = _read(mesh, sides=True, links=True)
+    t = _read(ref, sides=True, links=True)
     out_degree = np.bincount(t.origin, minlength=len(t.v_id))
     return t.v_id[_fans(t, t.polygon < 0, out_degree) > 1].tolist()
 
 
-def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> Stats:
+def stats(ref: MeshRef, progress: Callable[[str, int, int], object] | None = None) -> Stats:
     """Counts and topological invariants of a mesh, set-based: `Mesh.stats`.
 
     Reads the vertex ids and four half-edge columns (id, origin, twin, and
@@ -326,7 +323,8 @@ def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
 
     Parameters
     ----------
-    mesh : hestore.Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     progress : callable, optional
         ``progress(stage, done, total)`` at the start and end of each stage,
         ``"read"`` then ``"stats"`` (a `hestore.progress.ProgressBar`, say).
@@ -358,7 +356,7 @@ def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     """
     report = check_progress(progress)
     report("read", 0, 1)
-    t = _read(mesh, sides=True, links=True)
+    t = _read(ref, sides=True, links=True)
     report("read", 1, 1)
     report("stats", 0, 1)
     n_v, n_h = len(t.v_id), len(t.he_id)
@@ -419,19 +417,20 @@ def stats(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     )
 
 
-def boundary_loops(mesh: "Mesh") -> list[list[HalfEdge]]:
-    """The cycles of free half-edges under ``next``: `Mesh.boundary_loops`.
+def boundary_loops(ref: MeshRef) -> list[list[int]]:
+    """The cycles of free half-edges under ``next``, as half-edge ids: `Mesh.boundary_loops`.
 
     Wire edges' half-edges are free and belong to these cycles (see
-    `Stats.boundary_loops`). Handles are built only for the result.
+    `Stats.boundary_loops`).
 
     Parameters
     ----------
-    mesh : hestore.Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
 
     Returns
     -------
-    list of list of HalfEdge
+    list of list of int
         One list per cycle, in ``next`` order starting at its smallest id;
         the cycles sorted by that id. Empty for a closed mesh.
 
@@ -456,7 +455,7 @@ def boundary_loops(mesh: "Mesh") -> list[list[HalfEdge]]:
     True
     >>> store.close()
     """
-    t = _read(mesh, sides=True, links=False)
+    t = _read(ref, sides=True, links=False)
     free_rows, f, label, on_cycle = _free_cycles(t.polygon < 0, t.next)
     # Half-edges on no cycle only occur in corrupted tables; leave them out.
     keep = np.flatnonzero(on_cycle)
@@ -468,23 +467,24 @@ def boundary_loops(mesh: "Mesh") -> list[list[HalfEdge]]:
     order = np.lexsort((position, label))
     ids = t.he_id[free_rows[keep][order]].tolist()
     bounds = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1], True]).tolist() if len(ids) else [0]
-    return [[HalfEdge(mesh, i) for i in ids[a:b]] for a, b in zip(bounds[:-1], bounds[1:])]
+    return [ids[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def components(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> list[set[Vertex]]:
-    """The connected components of the vertex–edge graph: `Mesh.components`.
+def components(ref: MeshRef, progress: Callable[[str, int, int], object] | None = None) -> list[list[int]]:
+    """The connected components of the vertex–edge graph, as vertex ids: `Mesh.components`.
 
     Parameters
     ----------
-    mesh : hestore.Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     progress : callable, optional
         ``progress(stage, done, total)`` at the start and end of ``"read"`` and ``"label"``.
 
     Returns
     -------
-    list of set of Vertex
-        One set per component, an isolated vertex in a set of its own; sorted
-        by each component's smallest vertex id.
+    list of list of int
+        One list of vertex ids per component, an isolated vertex in a list of
+        its own; sorted by each component's smallest vertex id.
 
     Raises
     ------
@@ -504,7 +504,7 @@ def components(mesh: "Mesh", progress: Callable[[str, int, int], object] | None 
     """
     report = check_progress(progress)
     report("read", 0, 1)
-    t = _read(mesh, sides=False, links=True)
+    t = _read(ref, sides=False, links=True)
     report("read", 1, 1)
     report("label", 0, 1)
     rep = np.flatnonzero(np.arange(len(t.he_id)) < t.twin)
@@ -512,6 +512,6 @@ def components(mesh: "Mesh", progress: Callable[[str, int, int], object] | None 
     order, bounds = groups(roots)
     ids = t.v_id[order].tolist()
     bounds = bounds.tolist()
-    found = [{Vertex(mesh, i) for i in ids[a:b]} for a, b in zip(bounds[:-1], bounds[1:])]
+    found = [ids[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
     report("label", 1, 1)
     return found

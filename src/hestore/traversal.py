@@ -31,7 +31,7 @@ from __future__ import annotations
 import heapq
 import math
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Callable, Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import sqlalchemy as sa
 
@@ -44,13 +44,10 @@ from hestore.errors import (
     Violation,
     shown,
 )
-from hestore.handles import Vertex, wrap
 from hestore.navigation import exists, missing
 from hestore.statements import in_chunks, in_keys, indexed_by, padded
 from hestore.values import check_choice, check_integer
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = ["WEIGHTS", "k_ring", "shortest_path", "vertex_rows", "halfedges_among"]
 
@@ -76,7 +73,7 @@ _V = schema.vertices
 
 
 @contextmanager
-def _consistent(mesh: "Mesh") -> Iterator[None]:
+def _consistent(ref: MeshRef) -> Iterator[None]:
     """Run the block's reads in one read snapshot of the session's connection (an open block's own state).
 
     A search's queries then see one committed state even while other
@@ -84,18 +81,18 @@ def _consistent(mesh: "Mesh") -> Iterator[None]:
     also reads the revision: a cold query on PostgreSQL pays about a
     millisecond per round trip it makes.
     """
-    with mesh.session.reading() as connection, read_snapshot(connection):
+    with ref.session.reading() as connection, read_snapshot(connection):
         yield
 
 
-def _in_rows(mesh: "Mesh", name: str, build: Callable[[int], object], ids: Sequence[int]) -> list[tuple]:
+def _in_rows(ref: MeshRef, name: str, build: Callable[[int], object], ids: Sequence[int]) -> list[tuple]:
     """The rows of ``build(size)`` (a statement with ``IN (:i0 … :i{size-1})``) for ``ids``, in chunks.
 
     One statement per chunk of `MAX_IN` ids, compiled once per bucket size (`_LEAST_IN` at least).
     """
     rows: list[tuple] = []
     for chunk, size in in_chunks(ids, _LEAST_IN):
-        rows.extend(mesh.session.fetch(mesh.ref, (name, size), lambda size=size: build(size), padded(chunk, size)))
+        rows.extend(ref.session.fetch(ref, (name, size), lambda size=size: build(size), padded(chunk, size)))
     return rows
 
 
@@ -127,19 +124,19 @@ def _build_placed_star(size: int):
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def _broken(mesh: "Mesh", origin: int) -> InvariantViolationError:
+def _broken(ref: MeshRef, origin: int) -> InvariantViolationError:
     return InvariantViolationError(
         [Violation("REF", "vertex", (origin,), f"an outgoing half-edge of vertex {origin} in mesh "
-                   f"{mesh.name!r} has no twin; run check()")]
+                   f"{ref.name!r} has no twin; run check()")]
     )
 
 
-def _stars(mesh: "Mesh", ids: Sequence[int]) -> list[tuple[int, int]]:
+def _stars(ref: MeshRef, ids: Sequence[int]) -> list[tuple[int, int]]:
     """``(origin, target)`` of every outgoing half-edge of the vertices ``ids``: one query per `MAX_IN` of them."""
-    rows = _in_rows(mesh, "traversal_star", _build_star, ids)
+    rows = _in_rows(ref, "traversal_star", _build_star, ids)
     for origin, target in rows:
         if target is None:
-            raise _broken(mesh, origin)
+            raise _broken(ref, origin)
     return rows
 
 
@@ -149,7 +146,7 @@ def _build_vertices(size: int):
     )
 
 
-def vertex_rows(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
+def vertex_rows(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
     """``(id, x, y, z)`` of each of the vertices ``ids`` (distinct), ascending; coordinates None without a position.
 
     Raises
@@ -157,10 +154,10 @@ def vertex_rows(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
     ElementNotFoundError
         One of them does not exist (`MeshNotFoundError`: the mesh is gone).
     """
-    rows = sorted(_in_rows(mesh, "traversal_vertices", _build_vertices, ids))
+    rows = sorted(_in_rows(ref, "traversal_vertices", _build_vertices, ids))
     if len(rows) != len(ids):
         found = {r[0] for r in rows}
-        raise missing(mesh, "vertex", min(i for i in ids if i not in found))
+        raise missing(ref, "vertex", min(i for i in ids if i not in found))
     return rows
 
 
@@ -176,7 +173,7 @@ def _build_among(size: int):
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
-def halfedges_among(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
+def halfedges_among(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
     """The half-edges between the vertices ``ids`` (origin and target both among them), ascending by id.
 
     Each row is ``(id, origin, twin, edge, polygon, target, edge's halfedge)``;
@@ -185,10 +182,10 @@ def halfedges_among(mesh: "Mesh", ids: Sequence[int]) -> list[tuple]:
     kept half-edge is kept, so every edge comes with both its half-edges.
     """
     among = set(ids)
-    rows = _in_rows(mesh, "traversal_among", _build_among, ids)
+    rows = _in_rows(ref, "traversal_among", _build_among, ids)
     for row in rows:
         if row[5] is None or row[6] is None:
-            raise _broken(mesh, row[1])
+            raise _broken(ref, row[1])
     return sorted(r for r in rows if r[5] in among)
 
 
@@ -212,7 +209,7 @@ def _weight(weight: object) -> str | None:
 # k-ring
 
 
-def k_ring(mesh: "Mesh", v: int, k: int) -> set[Vertex]:
+def k_ring(ref: MeshRef, v: int, k: int) -> set[int]:
     """The vertices within ``k`` edges of vertex ``v``, ``v`` included.
 
     A breadth-first search, one query per level for its whole frontier
@@ -221,7 +218,8 @@ def k_ring(mesh: "Mesh", v: int, k: int) -> set[Vertex]:
 
     Parameters
     ----------
-    mesh : hestore.Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     v : int
         The id of the vertex at the centre.
     k : int
@@ -230,9 +228,9 @@ def k_ring(mesh: "Mesh", v: int, k: int) -> set[Vertex]:
 
     Returns
     -------
-    set of Vertex
+    set of int
         The keys of networkx's ``single_source_shortest_path_length(G, v,
-        cutoff=k)`` on the mesh's multigraph, as handles.
+        cutoff=k)`` on the mesh's multigraph: vertex ids.
 
     Raises
     ------
@@ -248,37 +246,37 @@ def k_ring(mesh: "Mesh", v: int, k: int) -> set[Vertex]:
     >>> import hestore
     >>> xyz = [(i // 2, i % 2, 0) for i in range(6)]
     >>> mesh = hestore.open("sqlite://").import_arrays("strip", xyz, [[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]]).mesh
-    >>> sorted(v.id for v in k_ring(mesh, 0, 1)), sorted(v.id for v in k_ring(mesh, 0, 2))
+    >>> sorted(k_ring(mesh.ref, 0, 1)), sorted(k_ring(mesh.ref, 0, 2))
     ([0, 1, 2], [0, 1, 2, 3, 4])
-    >>> k_ring(mesh, 5, 0)
-    {Vertex(5)}
+    >>> k_ring(mesh.ref, 5, 0)
+    {5}
     """
     k = _order(k)
-    with _consistent(mesh):
+    with _consistent(ref):
         seen = {v}
         frontier = [v]
         if k == 0:
-            exists(mesh, "vertex", v)
+            exists(ref, "vertex", v)
         for level in range(k):
             if not frontier:
                 break
-            stars = _stars(mesh, frontier)
+            stars = _stars(ref, frontier)
             if level == 0 and not stars:
-                exists(mesh, "vertex", v)  # isolated, or not there at all: only then one query more
+                exists(ref, "vertex", v)  # isolated, or not there at all: only then one query more
             found = []
             for _origin, target in stars:
                 if target not in seen:
                     seen.add(target)
                     found.append(target)
             frontier = found
-    return {wrap(Vertex, mesh, i) for i in seen}
+    return seen
 
 
 # --------------------------------------------------------------------------
 # Shortest paths
 
 
-def shortest_path(mesh: "Mesh", a: int, b: int, weight: str | None = None) -> list[Vertex]:
+def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> list[int]:
     """A shortest path from vertex ``a`` to vertex ``b``, as its vertices.
 
     ``weight=None`` counts edges: a bidirectional breadth-first search that
@@ -291,7 +289,8 @@ def shortest_path(mesh: "Mesh", a: int, b: int, weight: str | None = None) -> li
 
     Parameters
     ----------
-    mesh : hestore.Mesh
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     a, b : int
         The ids of the first and the last vertex.
     weight : {None, "length"}
@@ -300,8 +299,8 @@ def shortest_path(mesh: "Mesh", a: int, b: int, weight: str | None = None) -> li
 
     Returns
     -------
-    list of Vertex
-        From ``a`` to ``b``, consecutive ones joined by an edge; ``[a]`` when
+    list of int
+        Vertex ids from ``a`` to ``b``, consecutive ones joined by an edge; ``[a]`` when
         ``a == b``. As short as networkx's ``shortest_path`` on the mesh's
         multigraph (with ``"length"``: weighing each pair of vertices by its
         lightest edge); among paths of equal length, any one.
@@ -327,33 +326,33 @@ def shortest_path(mesh: "Mesh", a: int, b: int, weight: str | None = None) -> li
     >>> xyz = [(0, 0, 0), (9, 0, 0), (9, 12, 0), (6, 8, 0), (3, 4, 0)]
     >>> a, b, c, q, p = (mesh.add_vertex(position) for position in xyz)
     >>> pentagon = mesh.add_polygon([a, b, c, q, p])
-    >>> shortest_path(mesh, a.id, c.id)  # the fewest edges
-    [Vertex(0), Vertex(1), Vertex(2)]
-    >>> shortest_path(mesh, a.id, c.id, "length")  # the shortest
-    [Vertex(0), Vertex(4), Vertex(3), Vertex(2)]
+    >>> shortest_path(mesh.ref, a.id, c.id)  # the fewest edges
+    [0, 1, 2]
+    >>> shortest_path(mesh.ref, a.id, c.id, "length")  # the shortest
+    [0, 4, 3, 2]
     >>> lone = mesh.add_vertex()
-    >>> shortest_path(mesh, a.id, lone.id)
+    >>> shortest_path(mesh.ref, a.id, lone.id)
     Traceback (most recent call last):
     ...
     hestore.errors.NoPathError: no path from vertex 0 to vertex 5 in mesh 'm': they are in different components
     """
     weight = _weight(weight)
-    with _consistent(mesh):
+    with _consistent(ref):
         if weight is None:
-            vertex_rows(mesh, sorted({a, b}))  # both there, in one query
-            path = [a] if a == b else _bfs_path(mesh, a, b)
+            vertex_rows(ref, sorted({a, b}))  # both there, in one query
+            path = [a] if a == b else _bfs_path(ref, a, b)
         else:
-            path = _astar_path(mesh, a, b)
+            path = _astar_path(ref, a, b)
     if path is None:
         raise NoPathError(
-            f"no path from vertex {a} to vertex {b} in {_described(mesh)}: they are in different components"
+            f"no path from vertex {a} to vertex {b} in {_described(ref)}: they are in different components"
         )
-    return [wrap(Vertex, mesh, i) for i in path]
+    return path
 
 
-def _described(mesh: "Mesh") -> str:
-    at = "" if mesh.ref.revision is None else f" at revision {mesh.ref.revision}"
-    return f"mesh {mesh.name!r}{at}"
+def _described(ref: MeshRef) -> str:
+    at = "" if ref.revision is None else f" at revision {ref.revision}"
+    return f"mesh {ref.name!r}{at}"
 
 
 def _walk(parents: dict[int, int | None], v: int) -> list[int]:
@@ -364,7 +363,7 @@ def _walk(parents: dict[int, int | None], v: int) -> list[int]:
     return out
 
 
-def _bfs_path(mesh: "Mesh", a: int, b: int) -> list[int] | None:
+def _bfs_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
     """Fewest edges: a bidirectional breadth-first search, one query per level of the smaller side.
 
     Whole levels are expanded until the two sides meet; then every node
@@ -379,7 +378,7 @@ def _bfs_path(mesh: "Mesh", a: int, b: int) -> list[int] | None:
         parents, frontier = sides[k]
         others = sides[1 - k][0]
         found = []
-        for origin, target in _stars(mesh, frontier):
+        for origin, target in _stars(ref, frontier):
             if target in parents:
                 continue
             parents[target] = origin
@@ -396,14 +395,14 @@ def _distance(p: tuple, q: tuple) -> float:
     return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
 
 
-def _unweighable(mesh: "Mesh", edge: int, vertex: int) -> InvalidInputError:
+def _unweighable(ref: MeshRef, edge: int, vertex: int) -> InvalidInputError:
     return InvalidInputError(
-        f"cannot weigh the paths of {_described(mesh)} by length: edge {edge} has no length: "
+        f"cannot weigh the paths of {_described(ref)} by length: edge {edge} has no length: "
         f"vertex {vertex} has no position"
     )
 
 
-def _astar_path(mesh: "Mesh", a: int, b: int) -> list[int] | None:
+def _astar_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
     """Least total length: A* with the straight-line distance to ``b``, `_BATCH` vertices a query.
 
     A vertex may be expanded before its shortest distance is known (it was
@@ -411,7 +410,7 @@ def _astar_path(mesh: "Mesh", a: int, b: int) -> list[int] | None:
     it turns up, and the search stops only when no queued estimate is below
     the best length found to ``b`` — so the answer is exact.
     """
-    rows = {i: None if x is None else (x, y, z) for i, x, y, z in vertex_rows(mesh, sorted({a, b}))}
+    rows = {i: None if x is None else (x, y, z) for i, x, y, z in vertex_rows(ref, sorted({a, b}))}
     if a == b:
         return [a]
     goal = rows[b]
@@ -435,13 +434,13 @@ def _astar_path(mesh: "Mesh", a: int, b: int) -> list[int] | None:
             batch.append(v)
         if not batch:
             continue
-        for origin, target, edge, x, y, z in _in_rows(mesh, "traversal_placed_star", _build_placed_star, batch):
+        for origin, target, edge, x, y, z in _in_rows(ref, "traversal_placed_star", _build_placed_star, batch):
             if target is None:
-                raise _broken(mesh, origin)
+                raise _broken(ref, origin)
             if place[origin] is None:
-                raise _unweighable(mesh, edge, origin)
+                raise _unweighable(ref, edge, origin)
             if x is None or y is None or z is None:
-                raise _unweighable(mesh, edge, target)
+                raise _unweighable(ref, edge, target)
             if target == origin:
                 continue
             if target not in place:

@@ -70,7 +70,7 @@ V_ROTATION vertex 1: rotating from halfedge 1 leaves the vertex: next(twin(1)) =
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 import sqlalchemy as sa
@@ -80,9 +80,7 @@ from hestore.arrays import Index, TopologyArrays, cycles, first_per_group
 from hestore.columns import read_columns
 from hestore.errors import InvalidInputError, Violation
 from hestore.progress import check_progress
-
-if TYPE_CHECKING:  # pragma: no cover
-    from hestore.mesh import Mesh
+from hestore.session import MeshRef
 
 __all__ = [
     "CODES",
@@ -842,7 +840,7 @@ def check_arrays(
     return result
 
 
-def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = None) -> list[Violation]:
+def check(ref: MeshRef, progress: Callable[[str, int, int], object] | None = None) -> list[Violation]:
     """Check a stored mesh: what `Mesh.check` returns.
 
     Reads the mesh's tables in one snapshot through its store's session
@@ -851,8 +849,8 @@ def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
 
     Parameters
     ----------
-    mesh : hestore.Mesh
-        The mesh to check.
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
     progress : callable, optional
         ``progress(stage, done, total)``: ``"read"`` (0 then 1 of 1), then
         ``"check"`` (topology, properties, history: 0 to 3 of 3).
@@ -872,22 +870,22 @@ def check(mesh: "Mesh", progress: Callable[[str, int, int], object] | None = Non
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.create_mesh("m")
-    >>> check(mesh)
+    >>> check(mesh.ref)
     []
     >>> store.close()
     """
     report = check_progress(progress)
-    with mesh.session.snapshot(mesh.ref) as snap:
+    with ref.session.snapshot(ref) as snap:
         report("read", 0, 1)
         arrays = _arrays(snap.columns(_REQUESTS))
         report("read", 1, 1)
         report("check", 0, 3)
-        found = check_arrays(arrays, allow_loops=mesh.allow_loops, allow_multi_edges=mesh.allow_multi_edges)
+        found = check_arrays(arrays, allow_loops=ref.allow_loops, allow_multi_edges=ref.allow_multi_edges)
         report("check", 1, 3)
-        found += _property_violations(snap, mesh.id, arrays)
+        found += _property_violations(snap, ref.id, arrays)
         report("check", 2, 3)
-        if not mesh.is_view:  # a view is read from the history this checks
-            found += _history_violations(snap, mesh.id)
+        if ref.revision is None:  # a view is read from the history this checks
+            found += _history_violations(snap, ref.id)
         report("check", 3, 3)
         return found
 
