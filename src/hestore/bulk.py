@@ -470,8 +470,8 @@ def write(ref: MeshRef, built: BuiltImport, progress: Progress | None = None) ->
     with ref.session.editing(ref) as uow:
         uow.insert_bulk(BulkRows(tables, report), counters)
         for spec, ids, data in built.columns:
-            prop = uow.add_property(spec)
-            uow.stage(BulkValues(prop, ids, values.columns_of(prop, ids, data), None, replace_all=True))
+            prop = uow.values.add_property(spec)
+            uow.values.stage(BulkValues(prop, ids, values.columns_of(prop, ids, data), None, replace_all=True))
     if progress is not None:
         progress("write", total, total)
 

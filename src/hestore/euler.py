@@ -178,7 +178,7 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
         far = [uow.he(uow.he(x)[PREV])[ORIGIN] for x in triangles]
         uow.load(stars=far, polygons=[uow.he(x)[POLYGON] for x in triangles])
     after_h, before_t, after_t = hr[NEXT], tr[PREV], tr[NEXT]
-    v = uow.new_vertex(position if position is not None else uow.mean_position((a, b)))
+    v = uow.new_vertex(position if position is not None else uow.values.mean_position((a, b)))
     e2, h2, t2 = uow.new_edge(v, b)
     # t2 takes t's place at b; where h and t were consecutive there, so are h2 and t2.
     uow.set_origin(t, v)
@@ -193,17 +193,17 @@ def split_edge(uow: UnitOfWork, e: int, position: tuple | None = None, triangula
     if uow.vhe(b) == t:
         uow.set_vhe(b, t2)
     uow.set_vhe(v, t if hr[POLYGON] is not None and tr[POLYGON] is None else h2)
-    uow.derive("vertex", [(v, "mean", (a, b))])
-    uow.derive("edge", [(e2, "copy", (e,))])
+    uow.values.derive("vertex", [(v, "mean", (a, b))])
+    uow.values.derive("edge", [(e2, "copy", (e,))])
     # t2 is now the corner at b on t's side; h2 and t are the new corners at v.
-    uow.derive("halfedge", [(t2, "copy", (t,)), (h2, "corner", (h, after_h)), (t, "corner", (t, after_t))])
+    uow.values.derive("halfedge", [(t2, "copy", (t,)), (h2, "corner", (h, after_h)), (t, "corner", (t, after_t))])
     for corner in (h2 if x == h else t for x in triangles):
         # The quad (v, …) is cut from v to the corner across from it.
         opposite = uow.he(uow.he(corner)[NEXT])[NEXT]
         p = uow.he(corner)[POLYGON]
         _e, x, y, q = _cut(uow, corner, opposite)
-        uow.derive("polygon", [(q, "copy", (p,))])
-        uow.derive("halfedge", [(x, "copy", (corner,)), (y, "copy", (opposite,))])
+        uow.values.derive("polygon", [(q, "copy", (p,))])
+        uow.values.derive("halfedge", [(x, "copy", (corner,)), (y, "copy", (opposite,))])
     return v
 
 
@@ -264,8 +264,8 @@ def split_polygon(uow: UnitOfWork, p: int, a: tuple[str, int], b: tuple[str, int
     """
     ha, hb = check_split_polygon(uow, p, a, b)
     e, x, y, q = _cut(uow, ha, hb)
-    uow.derive("polygon", [(q, "copy", (p,))])
-    uow.derive("halfedge", [(x, "copy", (ha,)), (y, "copy", (hb,))])
+    uow.values.derive("polygon", [(q, "copy", (p,))])
+    uow.values.derive("halfedge", [(x, "copy", (ha,)), (y, "copy", (hb,))])
     return e
 
 
@@ -346,7 +346,7 @@ def poke_polygon(uow: UnitOfWork, p: int, position: tuple | None = None) -> int:
     loop = check_poke_polygon(uow, p)
     corners = [uow.he(h)[ORIGIN] for h in loop]
     uow.load(stars=corners)
-    c = uow.new_vertex(position if position is not None else uow.mean_position(corners))
+    c = uow.new_vertex(position if position is not None else uow.values.mean_position(corners))
     k = len(loop)
     spokes = [uow.new_edge(c, v) for v in corners]  # (edge, c→v, v→c)
     triangles = [p] + [uow.new_polygon(loop[i]) for i in range(1, k)]
@@ -358,11 +358,11 @@ def poke_polygon(uow: UnitOfWork, p: int, position: tuple | None = None) -> int:
         for x in (h, up, down):
             uow.set_polygon(x, triangles[i])
     uow.set_vhe(c, spokes[0][1])
-    uow.derive("vertex", [(c, "mean", corners)])
-    uow.derive("polygon", [(q, "copy", (p,)) for q in triangles[1:]])
+    uow.values.derive("vertex", [(c, "mean", corners)])
+    uow.values.derive("polygon", [(q, "copy", (p,)) for q in triangles[1:]])
     plan = [(spokes[i][1], "corner", loop) for i in range(k)]
     plan += [(spokes[(i + 1) % k][2], "copy", (loop[(i + 1) % k],)) for i in range(k)]
-    uow.derive("halfedge", plan)
+    uow.values.derive("halfedge", plan)
     return c
 
 
@@ -428,7 +428,7 @@ def flip_edge(uow: UnitOfWork, e: int) -> int:
         uow.set_vhe(b, h1)
     # Each polygon keeps its corner at a (resp. b) on another half-edge, and
     # its new corner copies the other polygon's corner at that vertex.
-    uow.derive("halfedge", [(t1, "copy", (h,)), (h1, "copy", (t,)), (h, "copy", (t2,)), (t, "copy", (h2,))])
+    uow.values.derive("halfedge", [(t1, "copy", (h,)), (h1, "copy", (t,)), (h, "copy", (t2,)), (t, "copy", (h2,))])
     return e
 
 
@@ -619,7 +619,7 @@ def collapse_edge(uow: UnitOfWork, h: int) -> int:
         if uow.vhe(w) not in rest:
             uow.set_vhe(w, min(rest))
         adjust_outgoing(uow, w)  # u's free half-edges are w's now
-    uow.derive("halfedge", corners + [(keep, "copy", (outer,)) for outer, keep in moved])
+    uow.values.derive("halfedge", corners + [(keep, "copy", (outer,)) for outer, keep in moved])
     return w
 
 
@@ -684,7 +684,7 @@ def heal_edges(uow: UnitOfWork, e1: int, e2: int) -> int:
         uow.set_vhe(b, y1)
     uow.delete_edge(e2)
     uow.delete_vertex(v)
-    uow.derive("halfedge", [(y1, "copy", (y2,))])
+    uow.values.derive("halfedge", [(y1, "copy", (y2,))])
     return e1
 
 
@@ -759,8 +759,8 @@ def triangulate_polygon(uow: UnitOfWork, p: int) -> list[int]:
         corner_plan += [(x, "copy", (loop[0],)), (y, "copy", (hb,))]
         triangles.append(q)
         ha = x
-    uow.derive("polygon", [(q, "copy", (p,)) for q in triangles[1:]])
-    uow.derive("halfedge", corner_plan)
+    uow.values.derive("polygon", [(q, "copy", (p,)) for q in triangles[1:]])
+    uow.values.derive("halfedge", corner_plan)
     return triangles
 
 
@@ -790,7 +790,7 @@ def separate_fans(uow: UnitOfWork, v: int) -> list[int]:
         before = uow.he(fan[0])[PREV]
         after_last = uow.he(uow.he(fan[-1])[TWIN])[NEXT]
         if not made:
-            xyz = uow.positions((v,)).get(v)
+            xyz = uow.values.positions((v,)).get(v)
         w = uow.new_vertex(xyz)
         uow.link(before, after_last)
         uow.link(uow.he(fan[-1])[TWIN], fan[0])
@@ -802,5 +802,5 @@ def separate_fans(uow: UnitOfWork, v: int) -> list[int]:
         adjust_outgoing(uow, v)
         adjust_outgoing(uow, w)
         made.append(w)
-    uow.derive("vertex", [(w, "copy", (v,)) for w in made])
+    uow.values.derive("vertex", [(w, "copy", (v,)) for w in made])
     return made

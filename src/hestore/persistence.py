@@ -411,46 +411,44 @@ class Persistence:
         tables of a bulk import go through `hestore.columns.write_columns`.
         A dropped mesh loses every row and its catalogue row.
         """
-        mesh_id = changes.mesh_id
         if changes.drop:
             for table in schema.MESH_TABLES:
                 drop = lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m"))  # noqa: E731
-                self._run(("drop", table.name), drop, mesh_id)
+                self._run(("drop", table.name), drop, changes.mesh_id)
             ms = schema.meshes
-            self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), mesh_id)
+            self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), changes.mesh_id)
             return
-        self._rev, self._keep = changes.revision, changes.history
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
         elements = ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons))
         positions = changes.properties.positions if changes.properties is not None else []
         # On SQLite each element table's rows this flush deletes, updates or moves are recorded by one
         # statement first, not one per write (PostgreSQL records them inside the writes themselves).
-        journaled = self._keep and not self._pg
+        journaled = changes.history and not self._pg
         if journaled:
             for table, rows in elements:
                 ids = [*rows.deleted, *(row[0] for row in rows.updated)]
                 if table is v:
                     ids += [row[0] for row in positions]
                 if ids:
-                    self._journal(mesh_id, table, "old", ("id",), [ids])
+                    self._journal(changes, table, "old", ("id",), [ids])
         write = functools.partial(self._write, journaled=journaled)
         for table, rows in elements:
-            write(mesh_id, table, "delete", ("id",), [(i,) for i in rows.deleted])
-        write(mesh_id, v, "insert", _VERTEX_INSERT, changes.vertices.inserted)
-        write(mesh_id, h, "insert", HE_COLUMNS, changes.halfedges.inserted)
-        write(mesh_id, e, "insert", _PAIR, changes.edges.inserted)
-        write(mesh_id, p, "insert", _PAIR, changes.polygons.inserted)
-        write(mesh_id, h, "update", _HE_UPDATE, changes.halfedges.updated)
-        write(mesh_id, v, "update", _PAIR, changes.vertices.updated)
-        write(mesh_id, e, "update", _PAIR, changes.edges.updated)
-        write(mesh_id, p, "update", _PAIR, changes.polygons.updated)
+            write(changes, table, "delete", ("id",), [(i,) for i in rows.deleted])
+        write(changes, v, "insert", _VERTEX_INSERT, changes.vertices.inserted)
+        write(changes, h, "insert", HE_COLUMNS, changes.halfedges.inserted)
+        write(changes, e, "insert", _PAIR, changes.edges.inserted)
+        write(changes, p, "insert", _PAIR, changes.polygons.inserted)
+        write(changes, h, "update", _HE_UPDATE, changes.halfedges.updated)
+        write(changes, v, "update", _PAIR, changes.vertices.updated)
+        write(changes, e, "update", _PAIR, changes.edges.updated)
+        write(changes, p, "update", _PAIR, changes.polygons.updated)
         if changes.bulk is not None:
-            self._write_bulk(mesh_id, changes.bulk)
+            self._write_bulk(changes, changes.bulk)
         if changes.properties is not None:
-            self._write_properties(mesh_id, changes.properties)
-            write(mesh_id, v, "update", _POSITION, positions)
+            self._write_properties(changes, changes.properties)
+            write(changes, v, "update", _POSITION, positions)
         nv, ne, np_, nq = changes.counters
-        values = {"m": mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump}
+        values = {"m": changes.mesh_id, "nv": nv, "ne": ne, "np": np_, "nq": nq, "bump": changes.bump}
         if changes.bump and changes.history:
             counts = None
             if changes.bulk is not None:
@@ -467,11 +465,11 @@ class Persistence:
                 )
                 return
             # As sqlite3's datetime adapter wrote it (deprecated since Python 3.12), without the adapter's call.
-            row = (mesh_id, changes.revision, at.isoformat(" "), message, counts, *changes.start)
+            row = (changes.mesh_id, changes.revision, at.isoformat(" "), message, counts, *changes.start)
             self.st.get("add_revision", _revision_insert).run_ordered(self.cursor(), _REVISION, row)
         self.st.get("upd_mesh", _mesh_update).run(self.cursor(), values)
 
-    def _write_properties(self, mesh_id: int, pc: PropertyChanges) -> None:
+    def _write_properties(self, changes: ChangeSet, pc: PropertyChanges) -> None:
         """Catalogue, values and bulk positions of one flush, in `PropertyChanges`' order.
 
         `write` writes the positions set one by one, after these.
@@ -479,11 +477,11 @@ class Persistence:
         write = self._write
         catalogue = schema.properties
         for prop in pc.removed:
-            self._clear(mesh_id, prop)
-        write(mesh_id, catalogue, "delete", ("id",), [(p.id,) for p in pc.removed])
-        write(mesh_id, catalogue, "insert", _CATALOGUE, [_catalogue_row(p) for p in pc.added])
+            self._clear(changes, prop)
+        write(changes, catalogue, "delete", ("id",), [(p.id,) for p in pc.removed])
+        write(changes, catalogue, "insert", _CATALOGUE, [_catalogue_row(p) for p in pc.added])
         for bulk in pc.bulk:
-            self._write_bulk_values(mesh_id, bulk)
+            self._write_bulk_values(changes, bulk)
         unset: dict = {}
         upserts: dict = {}
         for (pid, i), (prop, rows) in pc.values.items():
@@ -495,44 +493,44 @@ class Persistence:
                 width = sum(1 for c in table.c if c.name.startswith("v"))
                 upserts.setdefault(table, []).extend((pid, i, *(row + (None,) * width)[: width + 1]) for row in rows)
         for table, keys in unset.items():
-            write(mesh_id, table, "delete", _VALUE_KEY, keys)
+            write(changes, table, "delete", _VALUE_KEY, keys)
         for table, rows in upserts.items():
-            write(mesh_id, table, "upsert", _value_columns(table), rows)
+            write(changes, table, "upsert", _value_columns(table), rows)
         # Purged after the writes: values set in this flush on elements it deletes go too.
         purge: dict = {}
         for prop, ids in pc.purge:
             purge.setdefault(table_of(prop.dtype), []).extend((prop.id, i) for i in ids)
         for table, keys in purge.items():
-            write(mesh_id, table, "delete", _VALUE_KEY, keys)
+            write(changes, table, "delete", _VALUE_KEY, keys)
 
-    def _clear(self, mesh_id: int, prop: Property) -> None:
+    def _clear(self, changes: ChangeSet, prop: Property) -> None:
         """Delete every value of one property."""
         table = table_of(prop.dtype)
-        if self._keep:
-            self._journal_where(mesh_id, table, "old", "property", {"q": prop.id}, _of_property)
+        if changes.history:
+            self._journal_where(changes, table, "old", "property", {"q": prop.id}, _of_property)
 
         def build():
             return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
 
-        self.st.get(("clear", table.name), build).run(self.cursor(), {"m": mesh_id, "q": prop.id})
+        self.st.get(("clear", table.name), build).run(self.cursor(), {"m": changes.mesh_id, "q": prop.id})
 
-    def _write_bulk_values(self, mesh_id: int, bulk: BulkValues) -> None:
+    def _write_bulk_values(self, changes: ChangeSet, bulk: BulkValues) -> None:
         """One set-based write of many elements' values (or positions)."""
         columns = bulk.columns
         if bulk.prop is None:
             if self._pg and len(bulk.ids) >= _STAGE_ROWS:
-                self._update_positions_staged(mesh_id, columns)
+                self._update_positions_staged(changes, columns)
             else:
                 cols = [columns[c].tolist() for c in _POSITION]
-                self._write_columns(mesh_id, schema.vertices, "update", _POSITION, cols)
+                self._write_columns(changes, schema.vertices, "update", _POSITION, cols)
             return
         prop = bulk.prop
         table = table_of(prop.dtype)
         if bulk.replace_all:
-            self._clear(mesh_id, prop)
+            self._clear(changes, prop)
         else:
             gone = np.concatenate([bulk.ids, bulk.unset]) if bulk.unset is not None else bulk.ids
-            self._write_columns(mesh_id, table, "delete", _VALUE_KEY, [[prop.id] * len(gone), gone.tolist()])
+            self._write_columns(changes, table, "delete", _VALUE_KEY, [[prop.id] * len(gone), gone.tolist()])
         n = len(columns["id"])
         if not n:
             return
@@ -540,14 +538,14 @@ class Persistence:
         if prop.dtype == "str" and self._pg:
             # Binary COPY has no text layout here: one INSERT over unnest-ed arrays instead.
             names = tuple(columns)
-            self._write_columns(mesh_id, table, "insert", names, [list(columns[c]) for c in names])
+            self._write_columns(changes, table, "insert", names, [list(columns[c]) for c in names])
             return
-        columns["rev"] = np.full(n, self._rev)
-        write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, nulls=False)
-        if self._keep:
-            self._journal_where(mesh_id, table, "new", "property", {"q": prop.id}, _of_property)
+        columns["rev"] = np.full(n, changes.revision)
+        write_columns(self.cursor(), self.st.dialect, table, changes.mesh_id, columns, nulls=False)
+        if changes.history:
+            self._journal_where(changes, table, "new", "property", {"q": prop.id}, _of_property)
 
-    def _update_positions_staged(self, mesh_id: int, columns: dict) -> None:
+    def _update_positions_staged(self, changes: ChangeSet, columns: dict) -> None:
         """Many positions on PostgreSQL: binary COPY into a scratch table, then one ``UPDATE ... FROM``.
 
         An ``UPDATE`` over ``unnest``-ed arrays of a million elements is
@@ -558,7 +556,7 @@ class Persistence:
         cursor = self.cursor()
         dialect = self.st.dialect
         cursor.execute(str(CreateTable(staging, if_not_exists=True).compile(dialect=dialect)))
-        write_columns(cursor, dialect, staging, mesh_id, {c: columns[c] for c in _POSITION})
+        write_columns(cursor, dialect, staging, changes.mesh_id, {c: columns[c] for c in _POSITION})
 
         def build():
             s = staging
@@ -568,15 +566,15 @@ class Persistence:
                 .values(x=s.c.x, y=s.c.y, z=s.c.z, rev=sa.bindparam("r"))
             )
 
-        if self._keep:
+        if changes.history:
             self._journal_where(
-                mesh_id, v, "old", "staged", {},
+                changes.mesh_id, v, "old", "staged", {},
                 lambda t: sa.exists().where(staging.c.mesh_id == t.c.mesh_id, staging.c.id == t.c.id),
             )
-        self.st.get("update_positions_staged", build).run(cursor, {"r": self._rev})
+        self.st.get("update_positions_staged", build).run(cursor, {"r": changes.revision})
         cursor.execute(f"TRUNCATE {staging.name}")
 
-    def _journal(self, mesh_id: int, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
+    def _journal(self, changes: ChangeSet, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
         """`hestore.journal.to_history` on SQLite for the rows matched by ``key`` columns.
 
         Rows picked by id: one statement per `MAX_IN` ids; by a longer key
@@ -585,7 +583,7 @@ class Persistence:
         before the transaction (it is net).
         """
         if key == ("id",):
-            cursor, head = self.cursor(), (self._rev, mesh_id)
+            cursor, head = self.cursor(), (changes.revision, changes.mesh_id)
             for chunk, size in in_chunks(columns[0]):
 
                 def build(size=size):
@@ -599,20 +597,20 @@ class Persistence:
             ("journal", what, table.name, key),
             lambda: to_history(table, what, "sqlite", *(table.c[c] == sa.bindparam(c) for c in key)),
         )
-        stmt.run_columns(self.cursor(), {"m": mesh_id, "r": self._rev}, dict(zip(key, columns)))
+        stmt.run_columns(self.cursor(), {"m": changes.mesh_id, "r": changes.revision}, dict(zip(key, columns)))
 
-    def _journal_where(self, mesh_id: int, table: sa.Table, what: str, name: str, values: dict, where) -> None:
+    def _journal_where(self, changes: ChangeSet, table: sa.Table, what: str, name: str, values: dict, where) -> None:
         """`hestore.journal.to_history` for every row a condition on ``table`` picks: one ``INSERT ... SELECT``."""
         stmt = self.st.get(
             ("journal_where", what, table.name, name),
             lambda: to_history(table, what, self.st.dialect.name, where(table)),
         )
-        stmt.run(self.cursor(), {"m": mesh_id, "r": self._rev, **values})
+        stmt.run(self.cursor(), {"m": changes.mesh_id, "r": changes.revision, **values})
 
     def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
         self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
 
-    def _write_bulk(self, mesh_id: int, bulk) -> None:
+    def _write_bulk(self, changes: ChangeSet, bulk) -> None:
         total = sum(len(columns["id"]) for columns in bulk.tables.values())
         done = 0
         for name, columns in bulk.tables.items():
@@ -620,43 +618,43 @@ class Persistence:
             if bulk.progress is not None:
                 report = lambda rows, base=done: bulk.progress(base + rows, total)  # noqa: E731
             table = schema.metadata.tables[name]
-            columns = {**columns, "rev": np.full(len(columns["id"]), self._rev)}
-            write_columns(self.cursor(), self.st.dialect, table, mesh_id, columns, progress=report)
+            columns = {**columns, "rev": np.full(len(columns["id"]), changes.revision)}
+            write_columns(self.cursor(), self.st.dialect, table, changes.mesh_id, columns, progress=report)
             done += len(columns["id"])
 
-    def _write(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, rows: list[tuple],
+    def _write(self, changes: ChangeSet, table: sa.Table, what: str, cols: tuple, rows: list[tuple],
                journaled: bool = False) -> None:
         """Insert, update (by id, the first column) or delete (matching every column) rows of ``table``.
 
         ``journaled``: the rows' old versions are in history already (`write` recorded them).
         """
         if rows:
-            self._write_columns(mesh_id, table, what, cols, [list(c) for c in zip(*rows)], journaled)
+            self._write_columns(changes, table, what, cols, [list(c) for c in zip(*rows)], journaled)
 
-    def _write_columns(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list],
+    def _write_columns(self, changes: ChangeSet, table: sa.Table, what: str, cols: tuple, columns: list[list],
                        journaled: bool = False) -> None:
         """`_write` for rows given as one list per column: one statement (up to three on SQLite with history)."""
         if not columns or not len(columns[0]):
             return
         versioned, key, at, records = _recording(table.name, what, cols)
         if versioned and what != "delete":
-            cols, columns = (*cols, "rev"), [*columns, [self._rev] * len(columns[0])]
+            cols, columns = (*cols, "rev"), [*columns, [changes.revision] * len(columns[0])]
         if journaled:
             records = tuple(r for r in records if r != "old")
-        if not (versioned and self._keep and records):
-            self._write_statement(mesh_id, table, what, cols, columns)
+        if not (versioned and changes.history and records):
+            self._write_statement(changes, table, what, cols, columns)
             return
         keys = [columns[i] for i in at]
         if self._pg:
-            self._write_pg(mesh_id, table, what, cols, columns, records, key, keys)
+            self._write_pg(changes, table, what, cols, columns, records, key, keys)
             return
         if "old" in records:
-            self._journal(mesh_id, table, "old", key, keys)
-        self._write_statement(mesh_id, table, what, cols, columns)
+            self._journal(changes, table, "old", key, keys)
+        self._write_statement(changes, table, what, cols, columns)
         if "new" in records:
-            self._journal(mesh_id, table, "new", key, keys)
+            self._journal(changes, table, "new", key, keys)
 
-    def _write_pg(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list],
+    def _write_pg(self, changes: ChangeSet, table: sa.Table, what: str, cols: tuple, columns: list[list],
                   records: tuple = (), key: tuple = (), keys: list[list] = ()) -> None:
         """`_write_statement` on PostgreSQL, with its history ``records``: one statement, one round trip.
 
@@ -672,13 +670,16 @@ class Persistence:
             sql = self._pg_sql[cached] = (f"WITH {parts} " if parts else "") + _pg_statement(table, what, cols, sized)
         params: list = []
         for r in records:
-            params += [self._rev, *keys, mesh_id, self._rev] if r == "old" else [self._rev, mesh_id, *keys]
-        params += [mesh_id, *columns] if what in ("insert", "upsert") else [*columns, mesh_id]
+            rev, m = changes.revision, changes.mesh_id
+            params += [rev, *keys, m, rev] if r == "old" else [rev, m, *keys]
+        params += [changes.mesh_id, *columns] if what in ("insert", "upsert") else [*columns, changes.mesh_id]
         self.cursor().execute(sql, params)
 
-    def _write_statement(self, mesh_id: int, table: sa.Table, what: str, cols: tuple, columns: list[list]) -> None:
+    def _write_statement(
+        self, changes: ChangeSet, table: sa.Table, what: str, cols: tuple, columns: list[list]
+    ) -> None:
         if self._pg:
-            self._write_pg(mesh_id, table, what, cols, columns)
+            self._write_pg(changes, table, what, cols, columns)
             return
 
         def build():
@@ -697,4 +698,4 @@ class Persistence:
             return insert
 
         stmt = self.st.get((what, table.name, cols), build)
-        stmt.run_columns(self.cursor(), {"m": mesh_id}, dict(zip(cols, columns)))
+        stmt.run_columns(self.cursor(), {"m": changes.mesh_id}, dict(zip(cols, columns)))

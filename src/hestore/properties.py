@@ -128,7 +128,7 @@ def add_property(
     spec = Property(kind, name, dtype, shape, None)
     default = values.check_value(spec, default, "the default")
     with ref.session.editing(ref) as uow:
-        return uow.add_property(Property(kind, name, dtype, shape, default))
+        return uow.values.add_property(Property(kind, name, dtype, shape, default))
 
 
 def remove_property(ref: MeshRef, kind: str, name: str) -> None:
@@ -145,7 +145,7 @@ def remove_property(ref: MeshRef, kind: str, name: str) -> None:
     """
     kind = _kind(kind)
     with ref.session.editing(ref) as uow:
-        uow.remove_property(_declared(ref, uow.catalogue(), kind, name))
+        uow.values.remove_property(_declared(ref, uow.values.catalogue(), kind, name))
 
 
 def _build_catalogue(kind: str):
@@ -247,9 +247,9 @@ def set_value(ref: MeshRef, kind: str, i: int, name: str, new: Any) -> None:
         names the property and the element.
     """
     with ref.session.editing(ref) as uow:
-        prop = _declared(ref, uow.catalogue(), kind, name)
+        prop = _declared(ref, uow.values.catalogue(), kind, name)
         checked = values.check_value(prop, new, f"{_WHAT[kind]} {i}")
-        uow.set_value(prop, i, UNSET if checked is None else values.rows(prop, checked))
+        uow.values.set_value(prop, i, UNSET if checked is None else values.rows(prop, checked))
 
 
 # --------------------------------------------------------------------------
@@ -435,8 +435,8 @@ def set_property_array(ref: MeshRef, kind: str, name: str, ids: object, new: obj
         columns = values.columns_of(prop, ids[keep], data[keep])
         gone = None if unset is None else ids[unset]
         with session.editing(ref) as uow:
-            current = _declared(ref, uow.catalogue(), kind, name)
-            uow.stage(BulkValues(current, ids, columns, gone, every and gone is None))
+            current = _declared(ref, uow.values.catalogue(), kind, name)
+            uow.values.stage(BulkValues(current, ids, columns, gone, every and gone is None))
 
 
 def _read_spec(ref: MeshRef, kind: str, name: object) -> Property:
@@ -487,7 +487,7 @@ def set_position(ref: MeshRef, v: int, position: object) -> None:
     """
     xyz = check_position(position)
     with ref.session.editing(ref) as uow:
-        uow.set_position(v, xyz)
+        uow.values.set_position(v, xyz)
 
 
 def set_positions(ref: MeshRef, vertices: object, positions: object) -> None:
@@ -530,4 +530,4 @@ def set_positions(ref: MeshRef, vertices: object, positions: object) -> None:
         _live_check(ref, "vertex", ids)
         columns = {"id": ids, "x": xyz[:, 0].copy(), "y": xyz[:, 1].copy(), "z": xyz[:, 2].copy()}
         with session.editing(ref) as uow:
-            uow.stage(BulkValues(None, ids, columns, None))
+            uow.values.stage(BulkValues(None, ids, columns, None))

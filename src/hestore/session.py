@@ -562,7 +562,7 @@ class Session:
         self._writable(ref)
         with self._scope("edit", savepoint=False):
             uow = self._uow(ref)
-            if uow.staged:
+            if uow.values.staged:
                 # Set-based writes are written before the next edit, which may
                 # read the values they set (an operator deriving new values).
                 self._flush()

@@ -21,6 +21,13 @@ This module owns the in-memory side of editing. Topological operations
 Half-edge records are tuples ``(origin, next, prev, twin, edge, polygon)``;
 `GONE` marks a deleted element. Ids come from the mesh's counters and are
 never reused: edge ``e`` owns half-edges ``2e`` and ``2e + 1``.
+
+Two caches, two classes: `UnitOfWork` keeps the topology (the four element
+tables, the stars, the id counters); the `ValueWork` it owns (``uow.values``)
+keeps the property catalogue, pending values, staged set-based writes and
+positions, and derives the values of elements an operator makes (`derive`).
+Both write to one undo log of small typed entries, each of which knows how
+to undo itself.
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ from hestore.values import rows as value_rows
 
 __all__ = [
     "UnitOfWork",
+    "ValueWork",
     "ChangeSet",
     "RowChanges",
     "BulkRows",
@@ -77,6 +85,76 @@ NEW = _Marker("NEW")
 #: A property value written back to "no value" (the default).
 UNSET = _Marker("UNSET")
 _ABSENT = _Marker("ABSENT")
+
+
+# --------------------------------------------------------------------------
+# The undo log: one small entry per change, each undoing itself
+
+
+class _Restore:
+    """A dict entry as it was before a change (absent, or its old value)."""
+
+    __slots__ = ("d", "key", "old")
+
+    def __init__(self, d: dict, key: Any, old: Any) -> None:
+        self.d, self.key, self.old = d, key, old
+
+    def undo(self, uow: "UnitOfWork") -> None:
+        if self.old is _ABSENT:
+            self.d.pop(self.key, None)
+        else:
+            self.d[self.key] = self.old
+
+
+class _Dirtied:
+    """An element marked as changed since the last flush."""
+
+    __slots__ = ("dirty", "key")
+
+    def __init__(self, dirty: set, key: int) -> None:
+        self.dirty, self.key = dirty, key
+
+    def undo(self, uow: "UnitOfWork") -> None:
+        self.dirty.discard(self.key)
+
+
+class _Left:
+    """A half-edge added to (``added``) or removed from a vertex's cached star."""
+
+    __slots__ = ("v", "h", "added")
+
+    def __init__(self, v: int, h: int, added: bool) -> None:
+        self.v, self.h, self.added = v, h, added
+
+    def undo(self, uow: "UnitOfWork") -> None:
+        if self.added:
+            uow._out[self.v].discard(self.h)
+        else:
+            uow._out[self.v].add(self.h)
+
+
+class _Counters:
+    """The id counters before a change."""
+
+    __slots__ = ("counters",)
+
+    def __init__(self, counters: tuple) -> None:
+        self.counters = counters
+
+    def undo(self, uow: "UnitOfWork") -> None:
+        uow.next_vertex, uow.next_edge, uow.next_polygon, uow.next_property = self.counters
+
+
+class _Staged:
+    """What was staged for the next flush before a change: whole tables, the drop, set-based value writes."""
+
+    __slots__ = ("bulk", "drop", "bulk_values")
+
+    def __init__(self, uow: "UnitOfWork") -> None:
+        self.bulk, self.drop, self.bulk_values = uow._bulk, uow._drop, uow.values._bulk_vals
+
+    def undo(self, uow: "UnitOfWork") -> None:
+        uow._bulk, uow._drop, uow.values._bulk_vals = self.bulk, self.drop, self.bulk_values
 
 
 class RowChanges(NamedTuple):
@@ -241,20 +319,10 @@ class UnitOfWork:
         self.revision = revision
         self.history = history
         self._load = load
-        self._load_catalogue = catalogue
-        self._read_values = read_values
-        self._read_positions = read_positions
         self.allow_loops = allow_loops
         self.allow_multi_edges = allow_multi_edges
         self.next_vertex, self.next_edge, self.next_polygon, self.next_property = counters
         self._counters0 = tuple(counters)
-        # properties: the catalogue by (kind, name) once loaded; what changed since the last flush
-        self._props: dict[tuple[str, str], Property] | None = None if has_properties else {}
-        self._added: dict[int, Property] = {}
-        self._removed: dict[int, Property] = {}
-        self._vals: dict[tuple[int, int], tuple] = {}
-        self._bulk_vals: list[BulkValues] = []
-        self._pos_set: dict[int, tuple | None] = {}
         # current values / values as in the database (NEW: not there yet)
         self._he: dict[int, Any] = {}
         self._he0: dict[int, Any] = {}
@@ -264,9 +332,11 @@ class UnitOfWork:
         self._e0: dict[int, Any] = {}
         self._p: dict[int, Any] = {}
         self._p0: dict[int, Any] = {}
+        # each kind's current rows and rows as loaded
+        self._rows = {"vertex": (self._v, self._v0), "halfedge": (self._he, self._he0), "edge": (self._e, self._e0),
+                      "polygon": (self._p, self._p0)}
+        # the positions of vertices made since the last flush (written with their rows)
         self._pos: dict[int, tuple] = {}
-        # stored positions read since the last flush (the writer lock keeps them valid until it)
-        self._xyz: dict[int, tuple | None] = {}
         # vertices whose every outgoing half-edge (and its twin) is cached
         self._out: dict[int, set[int]] = {}
         self._dirty_he: set[int] = set()
@@ -278,6 +348,8 @@ class UnitOfWork:
         self._undo: list | None = None
         # a dry run (a ``can_*`` predicate): derived values and positions are not computed
         self._dry = False
+        #: Properties, values and positions: the value cache.
+        self.values = ValueWork(self, catalogue, has_properties, read_values, read_positions)
 
     # -- operations ------------------------------------------------------
 
@@ -310,43 +382,21 @@ class UnitOfWork:
         """Undo the current operation's changes made since ``mark``, newest first."""
         undo = self._undo or []
         while len(undo) > mark:
-            entry = undo.pop()
-            kind = entry[0]
-            if kind == "set":
-                _, d, key, old = entry
-                if old is _ABSENT:
-                    d.pop(key, None)
-                else:
-                    d[key] = old
-            elif kind == "out+":
-                self._out[entry[1]].discard(entry[2])
-            elif kind == "out-":
-                self._out[entry[1]].add(entry[2])
-            elif kind == "dirty":
-                entry[1].discard(entry[2])
-            elif kind == "counters":
-                self.next_vertex, self.next_edge, self.next_polygon, self.next_property = entry[1]
-            elif kind == "bulk":
-                self._bulk = entry[1]
-            elif kind == "drop":
-                self._drop = entry[1]
-            elif kind == "attr":
-                setattr(self, entry[1], entry[2])
+            undo.pop().undo(self)
 
-    def _set(self, d: dict, key: int, value: Any) -> None:
+    def _set(self, d: dict, key: Any, value: Any) -> None:
         if self._undo is not None:
-            self._undo.append(("set", d, key, d.get(key, _ABSENT)))
+            self._undo.append(_Restore(d, key, d.get(key, _ABSENT)))
         d[key] = value
 
     def _del(self, d: dict, key: Any) -> None:
         if self._undo is not None:
-            self._undo.append(("set", d, key, d.get(key, _ABSENT)))
+            self._undo.append(_Restore(d, key, d.get(key, _ABSENT)))
         d.pop(key, None)
 
-    def _set_attr(self, name: str, value: Any) -> None:
+    def _save_staged(self) -> None:
         if self._undo is not None:
-            self._undo.append(("attr", name, getattr(self, name)))
-        setattr(self, name, value)
+            self._undo.append(_Staged(self))
 
     def _touch(self, dirty: set, key: int) -> None:
         # Undone with the operation too: an aborted operation must leave
@@ -354,11 +404,11 @@ class UnitOfWork:
         if key not in dirty:
             dirty.add(key)
             if self._undo is not None:
-                self._undo.append(("dirty", dirty, key))
+                self._undo.append(_Dirtied(dirty, key))
 
     def _save_counters(self) -> None:
         if self._undo is not None:
-            self._undo.append(("counters", self.counters))
+            self._undo.append(_Counters(self.counters))
 
     @property
     def counters(self) -> tuple[int, int, int, int]:
@@ -534,12 +584,12 @@ class UnitOfWork:
     def _out_add(self, v: int, h: int) -> None:
         self._out[v].add(h)
         if self._undo is not None:
-            self._undo.append(("out+", v, h))
+            self._undo.append(_Left(v, h, True))
 
     def _out_remove(self, v: int, h: int) -> None:
         self._out[v].discard(h)
         if self._undo is not None:
-            self._undo.append(("out-", v, h))
+            self._undo.append(_Left(v, h, False))
 
     def new_edge(self, a: int, b: int) -> tuple[int, int, int]:
         """Allocate edge ``a``–``b`` as an isolated pair: ``(edge, a→b, b→a)``.
@@ -603,18 +653,16 @@ class UnitOfWork:
         not merged with the cache.
         """
         self._save_counters()
-        if self._undo is not None:
-            self._undo.append(("bulk", self._bulk))
+        self._save_staged()
         self._bulk = bulk
         self.next_vertex, self.next_edge, self.next_polygon = counters
 
     def drop(self) -> None:
         """Delete the mesh with all its rows at the next flush."""
-        if self._undo is not None:
-            self._undo.append(("drop", self._drop))
+        self._save_staged()
         self._drop = True
 
-    # -- properties and positions ------------------------------------------
+    # -- what the value cache asks of the topology ----------------------------
 
     def exists(self, kind: str, i: int) -> None:
         """Raise `ElementNotFoundError` unless element ``i`` of ``kind`` exists now."""
@@ -627,185 +675,17 @@ class UnitOfWork:
         else:
             self.polygon_he(i)
 
-    def catalogue(self) -> dict[tuple[str, str], Property]:
-        """The mesh's properties by ``(kind, name)``, as this transaction sees them."""
-        if self._props is None:
-            self._props = {(p.kind, p.name): p for p in self._load_catalogue(self.mesh_id)}
-        return self._props
+    def made(self, kind: str, i: int) -> bool:
+        """Whether element ``i`` of ``kind`` was made since the last flush (so nothing of it is stored)."""
+        return self._rows[kind][1].get(i) is NEW
 
-    def add_property(self, prop: Property) -> Property:
-        """Declare ``prop`` (its id is allocated here); return it with its id."""
-        catalogue = self.catalogue()
-        if (prop.kind, prop.name) in catalogue:
-            raise InvalidInputError(f"mesh already has a {prop.kind} property named {prop.name!r}")
-        self._save_counters()
-        prop = Property(prop.kind, prop.name, prop.dtype, prop.shape, prop.default, self.next_property)
-        self.next_property += 1
-        self._set(catalogue, (prop.kind, prop.name), prop)
-        self._set(self._added, prop.id, prop)
-        return prop
+    def removed(self, kind: str, i: int) -> bool:
+        """Whether element ``i`` of ``kind`` was deleted since the last flush."""
+        return self._rows[kind][0].get(i) is GONE
 
-    def remove_property(self, prop: Property) -> None:
-        """Remove a declared property with all its values."""
-        self._del(self.catalogue(), (prop.kind, prop.name))
-        if prop.id in self._added:
-            self._del(self._added, prop.id)
-        else:
-            self._set(self._removed, prop.id, prop)
-        for key in [key for key in self._vals if key[0] == prop.id]:
-            self._del(self._vals, key)
-        self._set_attr("_bulk_vals", [b for b in self._bulk_vals if b.prop is None or b.prop.id != prop.id])
-
-    def set_value(self, prop: Property, i: int, value_rows: list | _Marker) -> None:
-        """Set element ``i``'s value of ``prop`` to these rows (`hestore.values.rows`), or `UNSET`."""
-        self.exists(prop.kind, i)
-        self._set(self._vals, (prop.id, i), (prop, value_rows))
-
-    def set_position(self, v: int, xyz: tuple | None) -> None:
-        """Move vertex ``v`` (None: no position)."""
-        self.vhe(v)
-        # An update written after the flush's inserts and bulk writes, so the
-        # last call wins; a vertex new in this flush is inserted, then moved.
-        self._set(self._pos_set, v, xyz)
-
-    def stage(self, bulk: BulkValues) -> None:
-        """Stage a set-based write of values (or positions) for the next flush.
-
-        The caller has checked that every id exists. Single writes staged
-        earlier to the same elements are dropped: the bulk write replaces them.
-        """
-        if bulk.prop is None:
-            pending, key_of = self._pos_set, lambda key: key
-        else:
-            pid = bulk.prop.id
-            pending, key_of = self._vals, lambda key: key[1] if key[0] == pid else None
-        if pending:
-            ids = set(bulk.ids.tolist())
-            for key in [key for key in pending if key_of(key) in ids]:
-                self._del(pending, key)
-        self._set_attr("_bulk_vals", self._bulk_vals + [bulk])
-
-    @property
-    def staged(self) -> bool:
-        """Whether set-based writes are staged for the next flush."""
-        return bool(self._bulk_vals)
-
-    def _current(self, kind: str) -> dict:
-        return {"vertex": self._v, "halfedge": self._he, "edge": self._e, "polygon": self._p}[kind]
-
-    def positions(self, ids: Iterable[int]) -> dict[int, tuple | None]:
-        """The positions of these vertices as this transaction sees them."""
-        out: dict[int, tuple | None] = {}
-        stored = []
-        for v in dict.fromkeys(ids):
-            if v in self._pos_set:
-                out[v] = self._pos_set[v]
-            elif self._v0.get(v) is NEW:
-                out[v] = self._pos.get(v)
-            elif v in self._xyz:
-                out[v] = self._xyz[v]
-            else:
-                stored.append(v)
-        if stored:
-            found = self._read_positions(self.mesh_id, stored)
-            self._xyz.update(found)
-            out.update(found)
-        return out
-
-    def mean_position(self, ids: Iterable[int]) -> tuple | None:
-        """The mean position of these vertices (one per entry), or None if one has none.
-
-        Not computed in a dry run, which only asks whether an operator would succeed.
-        """
-        ids = list(ids)
-        if self._dry or not ids:
-            return None
-        found = self.positions(ids)
-        xyz = [found.get(v) for v in ids]
-        if any(p is None or None in p for p in xyz):
-            return None
-        return tuple(mean([p[k] for p in xyz]) for k in range(3))
-
-    def _values(self, props: list[Property], ids: set[int]) -> dict:
-        """``{(property id, id): value or None}`` as this transaction sees them."""
-        out: dict = {}
-        stored: list[int] = []
-        loaded = {"vertex": self._v0, "halfedge": self._he0, "edge": self._e0, "polygon": self._p0}[props[0].kind]
-        for i in ids:
-            if loaded.get(i) is not NEW:  # else made since the last flush: nothing stored
-                stored.append(i)
-        found: dict = {}
-        if stored:
-            fresh = [p for p in props if p.id not in self._added]
-            if fresh:
-                found = self._read_values(self.mesh_id, fresh, stored)
-        for prop in props:
-            for i in ids:
-                pending = self._vals.get((prop.id, i))
-                if pending is not None:
-                    rows = pending[1]
-                    out[prop.id, i] = prop.default if rows is UNSET else value_of(prop, rows)
-                else:
-                    out[prop.id, i] = value_of(prop, found.get((prop.id, i), []))
-        return out
-
-    def derive(self, kind: str, plan: Iterable[tuple]) -> None:
-        """Give elements an operator made or changed their values, from elements they came from.
-
-        ``plan`` holds ``(target, how, sources)``; every source is read as it
-        was before this call. ``how`` is ``"copy"`` (the first source's
-        value), ``"mean"`` (the mean of the sources for ``float64``, the first
-        source's otherwise: a new vertex) or ``"corner"`` (the mean for
-        ``float64``, the default otherwise: a new corner). A mean is taken
-        only where every source has a value. This is the one place where
-        operators meet properties (SPEC §3.1): they say where an element
-        came from, the unit of work carries its values.
-        """
-        if self._dry:
-            return
-        catalogue = self.catalogue()
-        props = [p for p in catalogue.values() if p.kind == kind] if catalogue else []
-        if not props:
-            return
-        plan = list(plan)
-        values = self._values(props, {s for _, _, sources in plan for s in sources})
-        loaded = {"vertex": self._v0, "halfedge": self._he0, "edge": self._e0, "polygon": self._p0}[kind]
-        for target, how, sources in plan:
-            for prop in props:
-                found = [values[prop.id, s] for s in sources]
-                if how == "copy" or (prop.dtype != "float64" and how == "mean"):
-                    value = found[0]
-                elif prop.dtype != "float64":
-                    value = None
-                elif any(x is None for x in found):
-                    value = None
-                elif prop.shape:
-                    value = tuple(mean([x[k] for x in found]) for k in range(prop.shape[0]))
-                else:
-                    value = mean(found)
-                if value is None:
-                    if loaded.get(target) is NEW and (prop.id, target) not in self._vals:
-                        continue  # nothing stored, nothing to remove
-                    self._set(self._vals, (prop.id, target), (prop, UNSET))
-                else:
-                    self._set(self._vals, (prop.id, target), (prop, value_rows(prop, value)))
-
-    def _property_changes(self, deleted: dict[str, list]) -> PropertyChanges | None:
-        purge = []
-        if any(deleted.values()) and (self._props is None or self._props):
-            for prop in self.catalogue().values():
-                if deleted[prop.kind]:
-                    purge.append((prop, deleted[prop.kind]))
-        positions = [
-            (v, *(xyz or (None, None, None))) for v, xyz in sorted(self._pos_set.items()) if self._v.get(v) is not GONE
-        ]
-        # Values of elements made and removed since the last flush are never written.
-        values = {key: val for key, val in self._vals.items() if self._current(val[0].kind).get(key[1]) is not GONE}
-        changes = PropertyChanges(
-            list(self._removed.values()), list(self._added.values()), list(self._bulk_vals),
-            values, positions, purge,
-        )
-        return changes if changes else None
+    def new_position(self, v: int) -> tuple | None:
+        """The position vertex ``v`` was made with (a vertex made since the last flush)."""
+        return self._pos.get(v)
 
     # -- flushing --------------------------------------------------------
 
@@ -819,8 +699,7 @@ class UnitOfWork:
         """Whether anything changed since the last flush."""
         return bool(
             self._dirty_he or self._dirty_v or self._dirty_e or self._dirty_p or self._bulk is not None or self._drop
-            or self._added or self._removed or self._vals or self._bulk_vals or self._pos_set
-            or self.counters != self._counters0
+            or self.values.dirty or self.counters != self._counters0
         )
 
     def changes(self, bump: int) -> ChangeSet:
@@ -869,7 +748,7 @@ class UnitOfWork:
                     rows.updated.append((i, cur))
             pairs.append(rows)
         deleted = {"vertex": v.deleted, "halfedge": he.deleted, "edge": pairs[0].deleted, "polygon": pairs[1].deleted}
-        properties = self._property_changes(deleted)
+        properties = self.values.changes(deleted)
         return ChangeSet(
             self.mesh_id, v, he, pairs[0], pairs[1], counters, bump, self.revision, self.history, self._counters0,
             self._bulk, properties=properties,
@@ -888,8 +767,253 @@ class UnitOfWork:
                 old_d[i] = NEW if cur is GONE else cur
             dirty.clear()
         self._pos.clear()
-        self._xyz.clear()
         self._bulk = None
+        self.values.flushed()
+        self._counters0 = self.counters
+
+
+class ValueWork:
+    """A write transaction's properties, values and positions of one mesh: the value cache of a `UnitOfWork`.
+
+    It holds the property catalogue (loaded on first need), the values and
+    positions set since the last flush, the set-based writes staged for it,
+    and the stored positions read meanwhile; it derives the values of the
+    elements an operator makes or changes (`derive`). It asks the topology
+    (its ``uow``) whether elements exist or were made or removed since the
+    last flush, and records its changes in the same undo log.
+
+    Parameters
+    ----------
+    uow : UnitOfWork
+        The topology it belongs to.
+    catalogue : callable, optional
+        ``catalogue(mesh_id) -> list[Property]``: the declared properties
+        (`hestore.persistence.Persistence.catalogue`), loaded on first need.
+    has_properties : bool
+        Whether the mesh has any property as stored (if not, the catalogue
+        is never loaded for the deletions of a flush).
+    read_values : callable, optional
+        ``read_values(mesh_id, props, ids) -> {(property id, id): rows}``:
+        stored values (`hestore.persistence.Persistence.values`), read when
+        an operator derives new elements' values from old ones (`derive`).
+    read_positions : callable, optional
+        ``read_positions(mesh_id, ids) -> {id: (x, y, z) or None}``: stored
+        positions (`hestore.persistence.Persistence.positions`).
+    """
+
+    def __init__(
+        self,
+        uow: UnitOfWork,
+        catalogue: Callable[[int], list] | None,
+        has_properties: bool,
+        read_values: Callable[[int, list, list], dict] | None,
+        read_positions: Callable[[int, list], dict] | None,
+    ) -> None:
+        self._uow = uow
+        self._load_catalogue = catalogue
+        self._read_values = read_values
+        self._read_positions = read_positions
+        # the catalogue by (kind, name) once loaded; what changed since the last flush
+        self._props: dict[tuple[str, str], Property] | None = None if has_properties else {}
+        self._added: dict[int, Property] = {}
+        self._removed: dict[int, Property] = {}
+        self._vals: dict[tuple[int, int], tuple] = {}
+        self._bulk_vals: list[BulkValues] = []
+        self._pos_set: dict[int, tuple | None] = {}
+        # stored positions read since the last flush (the writer lock keeps them valid until it)
+        self._xyz: dict[int, tuple | None] = {}
+
+    def catalogue(self) -> dict[tuple[str, str], Property]:
+        """The mesh's properties by ``(kind, name)``, as this transaction sees them."""
+        if self._props is None:
+            self._props = {(p.kind, p.name): p for p in self._load_catalogue(self._uow.mesh_id)}
+        return self._props
+
+    def add_property(self, prop: Property) -> Property:
+        """Declare ``prop`` (its id is allocated here); return it with its id."""
+        uow = self._uow
+        catalogue = self.catalogue()
+        if (prop.kind, prop.name) in catalogue:
+            raise InvalidInputError(f"mesh already has a {prop.kind} property named {prop.name!r}")
+        uow._save_counters()
+        prop = Property(prop.kind, prop.name, prop.dtype, prop.shape, prop.default, uow.next_property)
+        uow.next_property += 1
+        uow._set(catalogue, (prop.kind, prop.name), prop)
+        uow._set(self._added, prop.id, prop)
+        return prop
+
+    def remove_property(self, prop: Property) -> None:
+        """Remove a declared property with all its values."""
+        uow = self._uow
+        uow._del(self.catalogue(), (prop.kind, prop.name))
+        if prop.id in self._added:
+            uow._del(self._added, prop.id)
+        else:
+            uow._set(self._removed, prop.id, prop)
+        for key in [key for key in self._vals if key[0] == prop.id]:
+            uow._del(self._vals, key)
+        uow._save_staged()
+        self._bulk_vals = [b for b in self._bulk_vals if b.prop is None or b.prop.id != prop.id]
+
+    def set_value(self, prop: Property, i: int, value_rows: list | _Marker) -> None:
+        """Set element ``i``'s value of ``prop`` to these rows (`hestore.values.rows`), or `UNSET`."""
+        self._uow.exists(prop.kind, i)
+        self._uow._set(self._vals, (prop.id, i), (prop, value_rows))
+
+    def set_position(self, v: int, xyz: tuple | None) -> None:
+        """Move vertex ``v`` (None: no position)."""
+        self._uow.vhe(v)
+        # An update written after the flush's inserts and bulk writes, so the
+        # last call wins; a vertex new in this flush is inserted, then moved.
+        self._uow._set(self._pos_set, v, xyz)
+
+    def stage(self, bulk: BulkValues) -> None:
+        """Stage a set-based write of values (or positions) for the next flush.
+
+        The caller has checked that every id exists. Single writes staged
+        earlier to the same elements are dropped: the bulk write replaces them.
+        """
+        uow = self._uow
+        if bulk.prop is None:
+            pending, key_of = self._pos_set, lambda key: key
+        else:
+            pid = bulk.prop.id
+            pending, key_of = self._vals, lambda key: key[1] if key[0] == pid else None
+        if pending:
+            ids = set(bulk.ids.tolist())
+            for key in [key for key in pending if key_of(key) in ids]:
+                uow._del(pending, key)
+        uow._save_staged()
+        self._bulk_vals = self._bulk_vals + [bulk]
+
+    @property
+    def staged(self) -> bool:
+        """Whether set-based writes are staged for the next flush."""
+        return bool(self._bulk_vals)
+
+    def positions(self, ids: Iterable[int]) -> dict[int, tuple | None]:
+        """The positions of these vertices as this transaction sees them."""
+        uow = self._uow
+        out: dict[int, tuple | None] = {}
+        stored = []
+        for v in dict.fromkeys(ids):
+            if v in self._pos_set:
+                out[v] = self._pos_set[v]
+            elif uow.made("vertex", v):
+                out[v] = uow.new_position(v)
+            elif v in self._xyz:
+                out[v] = self._xyz[v]
+            else:
+                stored.append(v)
+        if stored:
+            found = self._read_positions(uow.mesh_id, stored)
+            self._xyz.update(found)
+            out.update(found)
+        return out
+
+    def mean_position(self, ids: Iterable[int]) -> tuple | None:
+        """The mean position of these vertices (one per entry), or None if one has none.
+
+        Not computed in a dry run, which only asks whether an operator would succeed.
+        """
+        ids = list(ids)
+        if self._uow._dry or not ids:
+            return None
+        found = self.positions(ids)
+        xyz = [found.get(v) for v in ids]
+        if any(p is None or None in p for p in xyz):
+            return None
+        return tuple(mean([p[k] for p in xyz]) for k in range(3))
+
+    def _values(self, props: list[Property], ids: set[int]) -> dict:
+        """``{(property id, id): value or None}`` as this transaction sees them."""
+        uow = self._uow
+        kind = props[0].kind
+        out: dict = {}
+        stored = [i for i in ids if not uow.made(kind, i)]  # one made since the last flush has nothing stored
+        found: dict = {}
+        if stored:
+            fresh = [p for p in props if p.id not in self._added]
+            if fresh:
+                found = self._read_values(uow.mesh_id, fresh, stored)
+        for prop in props:
+            for i in ids:
+                pending = self._vals.get((prop.id, i))
+                if pending is not None:
+                    rows = pending[1]
+                    out[prop.id, i] = prop.default if rows is UNSET else value_of(prop, rows)
+                else:
+                    out[prop.id, i] = value_of(prop, found.get((prop.id, i), []))
+        return out
+
+    def derive(self, kind: str, plan: Iterable[tuple]) -> None:
+        """Give elements an operator made or changed their values, from elements they came from.
+
+        ``plan`` holds ``(target, how, sources)``; every source is read as it
+        was before this call. ``how`` is ``"copy"`` (the first source's
+        value), ``"mean"`` (the mean of the sources for ``float64``, the first
+        source's otherwise: a new vertex) or ``"corner"`` (the mean for
+        ``float64``, the default otherwise: a new corner). A mean is taken
+        only where every source has a value. This is the one place where
+        operators meet properties (SPEC §3.1): they say where an element
+        came from, the unit of work carries its values.
+        """
+        uow = self._uow
+        if uow._dry:
+            return
+        catalogue = self.catalogue()
+        props = [p for p in catalogue.values() if p.kind == kind] if catalogue else []
+        if not props:
+            return
+        plan = list(plan)
+        values = self._values(props, {s for _, _, sources in plan for s in sources})
+        for target, how, sources in plan:
+            for prop in props:
+                found = [values[prop.id, s] for s in sources]
+                if how == "copy" or (prop.dtype != "float64" and how == "mean"):
+                    value = found[0]
+                elif prop.dtype != "float64":
+                    value = None
+                elif any(x is None for x in found):
+                    value = None
+                elif prop.shape:
+                    value = tuple(mean([x[k] for x in found]) for k in range(prop.shape[0]))
+                else:
+                    value = mean(found)
+                if value is None:
+                    if uow.made(kind, target) and (prop.id, target) not in self._vals:
+                        continue  # nothing stored, nothing to remove
+                    uow._set(self._vals, (prop.id, target), (prop, UNSET))
+                else:
+                    uow._set(self._vals, (prop.id, target), (prop, value_rows(prop, value)))
+
+    @property
+    def dirty(self) -> bool:
+        """Whether a property, value or position changed since the last flush."""
+        return bool(self._added or self._removed or self._vals or self._bulk_vals or self._pos_set)
+
+    def changes(self, deleted: dict[str, list]) -> PropertyChanges | None:
+        """What a flush writes of properties and positions; ``deleted`` ids by kind lose their values."""
+        uow = self._uow
+        purge = []
+        if any(deleted.values()) and (self._props is None or self._props):
+            for prop in self.catalogue().values():
+                if deleted[prop.kind]:
+                    purge.append((prop, deleted[prop.kind]))
+        positions = [
+            (v, *(xyz or (None, None, None)))
+            for v, xyz in sorted(self._pos_set.items()) if not uow.removed("vertex", v)
+        ]
+        # Values of elements made and removed since the last flush are never written.
+        values = {key: val for key, val in self._vals.items() if not uow.removed(val[0].kind, key[1])}
+        changes = PropertyChanges(
+            list(self._removed.values()), list(self._added.values()), list(self._bulk_vals),
+            values, positions, purge,
+        )
+        return changes if changes else None
+
+    def flushed(self) -> None:
+        """Record that the last `changes` are in the database."""
+        self._xyz.clear()
         self._added, self._removed, self._vals, self._pos_set = {}, {}, {}, {}
         self._bulk_vals = []
-        self._counters0 = self.counters
