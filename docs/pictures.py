@@ -3,7 +3,7 @@
 Every picture is drawn by hestore itself (`Mesh.plot`, `Mesh.render`) from a
 mesh read into an in-memory store: nothing is written but the pictures.
 
-- ``demo.png``: the mesh ``hestore demo`` builds (`hestore.demo.run`);
+- ``demo.png``: the mesh ``hestore demo`` builds (`hestore.cli.demo.run`);
 - ``navigation.png``: a small mesh with its vertex ids, for the navigation tables;
 - ``repair-hourglass.png``: ``hourglass_ico.obj`` imported with ``on_error="skip"`` and with ``on_error="split"``;
 - ``teapot.png``: the Newell teapot, ``teapot.obj``.
@@ -25,7 +25,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import hestore  # noqa: E402
-from hestore import demo  # noqa: E402
+from hestore.cli import demo  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))

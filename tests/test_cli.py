@@ -24,7 +24,8 @@ import pytest
 import sqlalchemy as sa
 
 import hestore
-from hestore import cli, migrate, progress
+from hestore import cli, migrate, progress, traversal
+from hestore.cli import commands, text
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
@@ -581,7 +582,7 @@ def test_info(capsys, db_url, tmp_path):
         "is_closed": False,
         "is_manifold": True,
     }
-    assert list(info) == list(cli._INFO_LABELS)  # every field has a label, in the order shown
+    assert list(info) == list(text.INFO_LABELS)  # every field has a label, in the order shown
 
     code, out, _ = run(capsys, "--db", db_url, "info", "strict")
     assert code == 0
@@ -612,7 +613,7 @@ def test_help_names_the_new_commands(capsys):
     assert code == 0 and "--kind" in out and "GraphML" in out
     from hestore import graphs
 
-    assert cli._GRAPH_KINDS == graphs.KINDS  # --kind offers every kind, the default first
+    assert traversal.KINDS == graphs.KINDS  # --kind offers every kind, the default first
 
 
 # -- info on other shapes, and graph ---------------------------------------------------
@@ -987,7 +988,7 @@ def test_progress_bar_on_a_terminal_redraws_one_line_and_throttles():
 
 def test_progress_bar_elsewhere_writes_one_plain_line():
     out, clock = io.StringIO(), FakeClock()
-    with progress.ProgressBar(out, units=cli._IMPORT_UNITS, clock=clock) as bar:
+    with progress.ProgressBar(out, units=commands.IMPORT_UNITS, clock=clock) as bar:
         assert not bar.tty
         bar("read", 10, 20)
         clock.now += 0.25
@@ -1026,7 +1027,7 @@ def test_long_commands_show_progress_when_slow(db_url, capsys, monkeypatch, tmp_
     assert run(capsys, "--db", db_url, "demo")[0] == 0
     for argv in (["check", "demo"], ["info", "demo"], ["graph", "demo", "components"]):
         assert run(capsys, "--db", db_url, *argv)[2] == ""  # quick: nothing on stderr
-    monkeypatch.setattr(cli, "_QUIET_SECONDS", 0.0)  # as if the mesh were large
+    monkeypatch.setattr(commands, "QUIET_SECONDS", 0.0)  # as if the mesh were large
     code, out, err = run(capsys, "--db", db_url, "check", "demo")
     assert (code, out) == (0, "demo: valid\n") and err.startswith("read in ") and ", check in " in err
     code, out, err = run(capsys, "--db", db_url, "info", "demo")
@@ -1123,7 +1124,7 @@ def test_an_unexpected_error_is_one_line_too(capsys, url, monkeypatch):
     def broken(args):
         raise RuntimeError("something nobody expected")
 
-    monkeypatch.setattr(cli, "_cmd_list", broken)
+    monkeypatch.setattr(commands, "cmd_list", broken)
     monkeypatch.delenv(cli.DEBUG_ENVIRONMENT, raising=False)
     code, out, err = run(capsys, "--db", url, "list")
     assert_one_line_error(code, out, err)
@@ -1175,7 +1176,7 @@ def test_info_lists_properties(capsys, db_url):
     code, out, err = run(capsys, "--db", db_url, "info", "w", "--json")
     assert (code, err) == (0, "")
     info = json.loads(out)
-    assert list(info) == [*cli._INFO_LABELS, "properties"]
+    assert list(info) == [*text.INFO_LABELS, "properties"]
     assert info["properties"] == [
         {"kind": "vertex", "name": "temperature", "dtype": "float64", "shape": [], "default": 0.0},
         {"kind": "halfedge", "name": "uv", "dtype": "float64", "shape": [2], "default": None},

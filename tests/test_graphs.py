@@ -40,7 +40,8 @@ from hypothesis.stateful import (
 )
 
 import hestore
-from hestore import demo, graphs, schema
+from hestore import graphs, schema
+from hestore.cli import demo
 from hestore.errors import HestoreError, InvalidInputError, InvariantViolationError, MeshNotFoundError, TopologyError
 
 from helpers import grid

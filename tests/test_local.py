@@ -40,6 +40,11 @@ def lightest(u, v, keydict) -> float:
     return min(d["length"] for d in keydict.values())
 
 
+def lightest_by(weight: str):
+    """The weight function of ``mesh.shortest_path(a, b, weight)`` (``"length"`` or an edge property)."""
+    return lightest if weight == "length" else lambda u, v, keydict: min(d[weight] for d in keydict.values())
+
+
 def reference(mesh: hestore.Mesh) -> nx.MultiGraph:
     """The whole multigraph with lengths, of the state the queries read (a copy: it may be edited)."""
     return nx.MultiGraph(mesh.to_networkx("multigraph", attrs=["length"]))
@@ -48,13 +53,13 @@ def reference(mesh: hestore.Mesh) -> nx.MultiGraph:
 def path_length(G: nx.MultiGraph, path: list[int], weight: str | None) -> float:
     if weight is None:
         return len(path) - 1
-    return sum(lightest(u, v, G[u][v]) for u, v in zip(path, path[1:]))
+    return sum(lightest_by(weight)(u, v, G[u][v]) for u, v in zip(path, path[1:]))
 
 
 def check_path(mesh, G, a: int, b: int, weight: str | None) -> list[int] | None:
     """Compare ``mesh.shortest_path`` with networkx for one pair; returns the path's ids (None: no path)."""
     try:
-        expected = nx.shortest_path_length(G, a, b, weight=None if weight is None else lightest)
+        expected = nx.shortest_path_length(G, a, b, weight=None if weight is None else lightest_by(weight))
     except nx.NetworkXNoPath:
         with pytest.raises(hestore.NoPathError) as info:
             mesh.shortest_path(mesh.vertex(a), mesh.vertex(b), weight=weight)
@@ -416,7 +421,7 @@ def test_bad_input_is_typed_and_changes_nothing(store):
         (hestore.InvalidInputError, lambda: mesh.k_ring(v(0), "2")),
         (hestore.InvalidInputError, lambda: mesh.k_ring(v(0), None)),
         (hestore.InvalidInputError, lambda: mesh.shortest_path(0, 1)),
-        (hestore.InvalidInputError, lambda: mesh.shortest_path(v(0), v(1), "cost")),
+        (hestore.PropertyNotFoundError, lambda: mesh.shortest_path(v(0), v(1), "cost")),  # no such edge property
         (hestore.InvalidInputError, lambda: mesh.shortest_path(v(0), v(1), 1)),
         (hestore.InvalidInputError, lambda: mesh.shortest_path(v(0), v(1), weight=["length"])),
         (hestore.InvalidInputError, lambda: mesh.to_networkx(vertices=[0, 1])),
@@ -445,6 +450,186 @@ def test_a_deleted_mesh_says_so(store):
     for call in (lambda: mesh.k_ring(a, 1), lambda: mesh.shortest_path(a, a), lambda: mesh.to_networkx(vertices=[a])):
         with pytest.raises(hestore.MeshNotFoundError):
             call()
+
+
+# -- weighed by an edge property ------------------------------------------------------------
+
+
+def weigh_edges(mesh, name: str, dtype: str, values: dict, default=None) -> nx.MultiGraph:
+    """Declare the edge property ``name``, set ``values`` ({edge id: value}), and return the reference graph."""
+    mesh.add_property("edge", name, dtype, default=default)
+    if values:
+        mesh.set_property_array("edge", name, list(values), list(values.values()))
+    return nx.MultiGraph(mesh.to_networkx("multigraph", attrs=[name]))
+
+
+def check_weighed(mesh, G, a: int, b: int, name: str) -> list[int] | None:
+    """`check_path` by the property ``name``, and `Mesh.path_weight` of the path: networkx's length."""
+    ids = check_path(mesh, G, a, b, name)
+    if ids is not None:
+        path = [mesh.vertex(i) for i in ids]
+        total = mesh.path_weight(path, name)
+        assert total == path_length(G, ids, name)
+        assert isinstance(total, float if mesh.properties("edge")[name].dtype == "float64" else int)
+    return ids
+
+
+def test_property_weights_agree_with_networkx(store):
+    mesh = wireframe(store)
+    rng = random.Random(4)
+    edges = [e.id for e in mesh.edges()]
+    # Integers with a default on the unset edges; floats of every size, some 0, one inf, set on every edge.
+    G = weigh_edges(mesh, "cost", "int64", {e: rng.choice([0, 1, 2, 7]) for e in edges if rng.random() < 0.7}, 3)
+    toll = {e: rng.choice([0.0, 0.5, 1e-9, 2.75, 1e6]) for e in edges}
+    toll[edges[-1]] = math.inf  # the lone edge 8-9: a path across it weighs inf
+    H = weigh_edges(mesh, "toll", "float64", toll)
+    ids = all_vertex_ids(mesh)
+    for a in ids:
+        for b in ids:
+            check_weighed(mesh, G, a, b, "cost")
+            check_weighed(mesh, H, a, b, "toll")
+    assert mesh.path_weight([mesh.vertex(8), mesh.vertex(9)], "toll") == math.inf
+    # The parallel edges 0-1 (edges 0 and 5): the lightest counts, in the search and in the path's weight.
+    v = mesh.vertex
+    with store.transaction():
+        for e, cost in [(0, 9), (5, 0), (1, 4), (4, 9), (2, 9), (3, 1)]:
+            mesh.edge(e)["cost"] = cost
+    assert mesh.shortest_path(v(1), v(2), "cost") == [v(1), v(2)]
+    assert mesh.shortest_path(v(1), v(3), "cost") == [v(1), v(0), v(3)]
+    assert mesh.path_weight([v(1), v(0)], "cost") == 0 and mesh.path_weight([v(1), v(0), v(2)], "cost") == 9
+
+
+def test_a_property_named_length_is_that_property(store):
+    mesh = wireframe(store)
+    by_position = [v.id for v in mesh.shortest_path(mesh.vertex(1), mesh.vertex(3), "length")]
+    G = weigh_edges(mesh, "length", "int64", {4: 10}, default=1)  # the diagonal 0-2, the shortest way, costs 10
+    for a in all_vertex_ids(mesh):
+        for b in (1, 3, 5):
+            check_weighed(mesh, G, a, b, "length")
+    assert by_position in ([1, 0, 3], [1, 2, 3])
+    assert mesh.path_weight([mesh.vertex(0), mesh.vertex(2)], "length") == 10  # not √2
+
+
+small_weight = st.one_of(st.none(), st.integers(0, 5), st.sampled_from([0.5, 1e-6, 1e9]))
+
+
+@settings(max_examples=25, **STORED)
+@given(wire=wireframes(), data=st.data())
+def test_random_weighted_wireframes_agree_with_networkx(store, wire, data):
+    positions, edges = wire
+    mesh = store.create_mesh(f"w{len(store.meshes())}")
+    with store.transaction():
+        vs = [mesh.add_vertex(p) for p in positions]
+        es = [mesh.add_edge(vs[a], vs[b]).id for a, b in edges]
+    dtype = data.draw(st.sampled_from(["int64", "float64"]))
+    number = int if dtype == "int64" else float
+    drawn = data.draw(st.lists(small_weight, min_size=len(es), max_size=len(es)))
+    values = {e: number(w) for e, w in zip(es, drawn) if w is not None}
+    G = weigh_edges(mesh, "w", dtype, values, default=number(data.draw(st.integers(0, 3))))
+    ids = [v.id for v in vs]
+    for _ in range(4):
+        check_weighed(mesh, G, data.draw(st.sampled_from(ids)), data.draw(st.sampled_from(ids)), "w")
+
+
+def test_grid_weighed_by_a_property_reads_around_its_vertices(store):
+    mesh = store.create_mesh("grid")
+    grid(mesh, 30, 30)
+    rng = random.Random(11)
+    G = weigh_edges(mesh, "time", "float64", {e.id: rng.uniform(0.5, 2.0) for e in mesh.edges()})
+    for a, b in sample_pairs(all_vertex_ids(mesh), 15, 2):
+        check_weighed(mesh, G, a, b, "time")
+    mesh.add_property("edge", "unit", "float64", default=1.0)
+    a, b = mesh.vertex(480), mesh.vertex(482)  # two edges apart, mid-grid
+    statements: list[str] = []
+    with store.session.traced(statements.append):
+        path = mesh.shortest_path(a, b, "unit")
+    assert [x.id for x in path] == [480, 481, 482]
+    # The two vertices, the catalogue, then for each of the two levels a batch of stars and their edges' values:
+    # never a whole column.
+    assert len(statements) == 2 + 2 * 2, statements
+    assert all(" IN (" in sql for sql in statements[2:]), statements
+    assert ["property_reals" in sql for sql in statements[2:]] == [False, True, False, True], statements
+
+
+def test_property_weights_in_a_block_and_in_the_past(store):
+    mesh = wireframe(store)
+    mesh.add_property("edge", "cost", "int64", default=1)
+    v = mesh.vertex
+    r = mesh.revision
+    G_then = nx.MultiGraph(mesh.to_networkx("multigraph", attrs=["cost"]))
+    with store.transaction():
+        mesh.find_halfedge(v(4), v(5)).edge["cost"] = 50  # the only way from 4 onwards
+        mesh.add_edge(v(4), v(7))
+        inside = [x.id for x in mesh.shortest_path(v(4), v(6), "cost")]
+        assert mesh.path_weight([v(4), v(5)], "cost") == 50  # the block's own edit
+    assert inside == [4, 7, 6]
+    past = mesh.at(r)
+    for a, b in sample_pairs(list(G_then.nodes), 30, 5):
+        check_weighed(past, G_then, a, b, "cost")
+    assert [x.id for x in past.shortest_path(past.vertex(4), past.vertex(6), "cost")] == [4, 5, 6]
+    assert past.path_weight([past.vertex(4), past.vertex(5)], "cost") == 1
+
+
+def test_property_weights_refuse_what_cannot_weigh(store):
+    mesh = store.create_mesh("m", allow_loops=True)
+    a, b, c, d = (mesh.add_vertex((x, 0, 0)) for x in range(4))
+    ab, bc, cd = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(c, d)
+    mesh.add_property("edge", "cost", "int64", default=1)
+    mesh.add_property("edge", "toll", "float64")  # no default
+    mesh.add_property("edge", "tag", "str", default="")
+    mesh.add_property("edge", "uv", "float64", shape=(2,))
+    mesh.add_property("vertex", "heat", "float64", default=0.0)
+    for weight, error, message in [
+        ("nope", hestore.PropertyNotFoundError, "mesh 'm' has no edge property named 'nope'"),
+        ("heat", hestore.PropertyNotFoundError, "mesh 'm' has no edge property named 'heat'"),  # a vertex's
+        ("tag", hestore.InvalidInputError, "edge property 'tag' of mesh 'm' is str, not a number"),
+        ("uv", hestore.InvalidInputError, "edge property 'uv' of mesh 'm' is float64 of shape (2,), not a number"),
+    ]:
+        for call in (lambda: mesh.shortest_path(a, a, weight), lambda: mesh.path_weight([a], weight)):
+            with pytest.raises(error) as info:
+                call()
+            assert str(info.value) == message and info.value.weights == ("length", "cost", "toll")
+    for weight in (1, ["cost"], b"cost", True):
+        with pytest.raises(hestore.InvalidInputError) as info:
+            mesh.shortest_path(a, d, weight)
+        assert info.value.weights is None
+    # An edge the search meets without a weight, or with one below 0 or NaN: refused, named.
+    for value, reason in [
+        (None, f"edge {bc.id} has no value of property 'toll', which has no default"),
+        (-1.5, f"edge {bc.id} has a negative toll (-1.5); a shortest path needs weights of 0 or more"),
+        (math.nan, f"edge {bc.id} has toll NaN"),
+    ]:
+        with store.transaction():
+            ab["toll"], bc["toll"], cd["toll"] = 1.0, value, 1.0
+        for call in (lambda: mesh.shortest_path(a, d, "toll"), lambda: mesh.path_weight([b, c], "toll")):
+            with pytest.raises(hestore.InvalidInputError) as info:
+                call()
+            assert str(info.value) == f"cannot weigh the paths of 'm' by toll: {reason}"
+        assert mesh.shortest_path(a, b, "toll") == [a, b]  # edge bc: at b, which the search never expands
+    # A self-loop at a vertex the search expands is weighed too (as networkx does), though it never shortens.
+    loop = mesh.add_edge(a, a)
+    loop["cost"] = -1
+    with pytest.raises(hestore.InvalidInputError, match=f"edge {loop.id} has a negative cost"):
+        mesh.shortest_path(a, b, "cost")
+    assert mesh.shortest_path(b, c, "cost") == [b, c] and mesh.shortest_path(a, a, "cost") == [a]
+    mesh.remove_edge(loop)
+    # path_weight: a path is consecutive vertices joined by an edge, of this mesh.
+    other = store.create_mesh("other").add_vertex()
+    before = dump(store)
+    cases = [
+        (hestore.InvalidInputError, lambda: mesh.path_weight([], "cost")),
+        (hestore.InvalidInputError, lambda: mesh.path_weight([a, c], "cost")),
+        (hestore.InvalidInputError, lambda: mesh.path_weight([a, b, a, d])),
+        (hestore.InvalidInputError, lambda: mesh.path_weight(a)),
+        (hestore.InvalidInputError, lambda: mesh.path_weight([a.id, b.id])),
+        (hestore.ElementNotFoundError, lambda: mesh.path_weight([a, other])),
+    ]
+    for error, call in cases:
+        with pytest.raises(error):
+            call()
+    assert dump(store) == before
+    assert mesh.path_weight([a]) == 0 and mesh.path_weight([a], "length") == 0.0
+    assert mesh.path_weight([a, b, c, d]) == 3 and mesh.path_weight([d, c, b], "length") == 2.0
 
 
 # -- the command line -----------------------------------------------------------------------
@@ -500,6 +685,24 @@ def test_cli_graph_path_builds_no_graph(capsys, db_url, monkeypatch):
     )  # fmt: skip
     assert run(capsys, *graph, "path", "0", "9", "--weight", "length")[0] == 1
     assert "vertex 42 does not exist" in one_line_error(*run(capsys, *graph, "path", "0", "42"))
+
+
+def test_cli_graph_path_by_a_property_builds_no_graph(capsys, db_url, monkeypatch):
+    with hestore.open(db_url) as store:
+        weigh_edges(wireframe(store), "cost", "int64", {4: 5}, default=1)  # the diagonal 0-2 costs 5
+
+    def refused(*args, **kwargs):
+        raise AssertionError("graph … path --weight built the whole graph")
+
+    monkeypatch.setattr(graphs, "to_networkx", refused)
+    graph = ("--db", db_url, "graph", "wire", "path")
+    code, out, err = run(capsys, *graph, "0", "2", "--weight", "cost")
+    assert (code, err) == (0, "")
+    assert out in ("path: 0 1 2\nlength: 2 edges\ntotal cost: 2\n", "path: 0 3 2\nlength: 2 edges\ntotal cost: 2\n")
+    assert run(capsys, *graph, "4", "8", "--weight", "cost")[0] == 1
+    assert one_line_error(*run(capsys, *graph, "0", "2", "--weight", "nope")) == (
+        "hestore: error: mesh 'wire' has no edge property named 'nope'; --weight takes: length, cost\n"
+    )
 
 
 # -- the documentation's example --------------------------------------------------------------

@@ -101,7 +101,17 @@ class MeshNotFoundError(ElementNotFoundError):
 
 
 class PropertyNotFoundError(HestoreError, KeyError):
-    """No property of that name is declared on that element kind of the mesh."""
+    """No property of that name is declared on that element kind of the mesh.
+
+    Attributes
+    ----------
+    weights : tuple of str or None
+        For a ``weight`` of `Mesh.shortest_path` or `Mesh.path_weight` that
+        is no edge property: the names that weigh a path of that mesh
+        (``"length"``, then its numeric edge properties). None otherwise.
+    """
+
+    weights: Any = None
 
     def __str__(self) -> str:
         return str(self.args[0]) if self.args else ""
@@ -174,9 +184,15 @@ class InvalidInputError(HestoreError, ValueError):
         For an import with ``on_error="raise"`` refused because of one
         polygon (an index out of range, an empty polygon): that polygon.
         None otherwise.
+    weights : tuple of str or None
+        For a ``weight`` of `Mesh.shortest_path` or `Mesh.path_weight` that
+        names an edge property that is not a number: the names that weigh a
+        path of that mesh (``"length"``, then its numeric edge properties).
+        None otherwise.
     """
 
     skipped: Any = None
+    weights: Any = None
 
 
 class MeshExistsError(InvalidInputError):

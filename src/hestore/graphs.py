@@ -56,16 +56,13 @@ from hestore.arrays import Index, run_starts
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, PropertyNotFoundError, shown
 from hestore.progress import check_progress
+from hestore.traversal import KINDS, LENGTH, NUMERIC
 from hestore.values import Property, check_choice, check_items
 from hestore.session import MeshRef
 
+# KINDS (the graph kinds `to_networkx` makes, the default first) and LENGTH (the derived edge attribute of
+# ``attrs``) are `hestore.traversal`'s, below networkx, so that the command line offers them without it.
 __all__ = ["KINDS", "LENGTH", "to_networkx"]
-
-#: The graph kinds `to_networkx` makes, the default first.
-KINDS = ("multigraph", "graph", "halfedge", "dual")
-
-#: The derived edge attribute of ``attrs``: the Euclidean length of the edge, from its end points' positions.
-LENGTH = "length"
 
 #: The key of the graphs in `hestore.session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``,
 #: and ``{(mesh id, kind, attrs): (revision, graph)}`` for graphs with property attributes.
@@ -524,7 +521,7 @@ def _as_column(prop: Property, array: np.ndarray) -> _Column:
         out = list(map(tuple, out))
     for i in np.flatnonzero(~present).tolist():
         out[i] = _ABSENT
-    numeric = raw if not prop.shape and prop.dtype in ("int64", "float64") else None
+    numeric = raw if not prop.shape and prop.dtype in NUMERIC else None
     return _Column(prop.name, out, present, numeric)
 
 

@@ -1062,8 +1062,8 @@ class Mesh:
         return {wrap(Vertex, self, i) for i in traversal.k_ring(self.ref, self._own(v, Vertex, " for v"), k)}
 
     def shortest_path(self, a: Vertex, b: Vertex, weight: str | None = None) -> list[Vertex]:
-        """A shortest path from ``a`` to ``b``: fewest edges, or least total ``"length"``; see
-        `hestore.traversal.shortest_path`.
+        """A shortest path from ``a`` to ``b``: fewest edges, least total ``"length"``, or least total value of
+        a numeric edge property; see `hestore.traversal.shortest_path`.
 
         Raises `hestore.NoPathError` when no path joins them.
 
@@ -1075,9 +1075,31 @@ class Mesh:
         >>> ab, bc, ac = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(a, c)
         >>> mesh.shortest_path(a, c), mesh.shortest_path(a, c, weight="length"), mesh.shortest_path(b, b)
         ([Vertex(0), Vertex(2)], [Vertex(0), Vertex(2)], [Vertex(1)])
+        >>> _ = mesh.add_property("edge", "cost", "float64", default=1.0)
+        >>> ac["cost"] = 5.0
+        >>> mesh.shortest_path(a, c, weight="cost")
+        [Vertex(0), Vertex(1), Vertex(2)]
         """
         path = traversal.shortest_path(self.ref, self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b"), weight)
         return [wrap(Vertex, self, i) for i in path]
+
+    def path_weight(self, path: Sequence[Vertex], weight: str | None = None) -> int | float:
+        """The weight of a path of `Vertex` handles, as `shortest_path` weighs it: its number of edges
+        (``weight=None``), or the sum of its edges' lengths or values; see `hestore.traversal.path_weight`.
+
+        Examples
+        --------
+        >>> import hestore
+        >>> mesh = hestore.open("sqlite://").create_mesh("m")
+        >>> a, b, c = (mesh.add_vertex((x, 0, 0)) for x in (0, 1, 3))
+        >>> ab, bc, ac = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(a, c)
+        >>> _ = mesh.add_property("edge", "cost", "int64", default=2)
+        >>> path = mesh.shortest_path(a, c, weight="cost")
+        >>> path, mesh.path_weight(path), mesh.path_weight(path, "length"), mesh.path_weight(path, "cost")
+        ([Vertex(0), Vertex(2)], 1, 3.0, 2)
+        """
+        ids = [self._own(v, Vertex, " in the path") for v in values.check_items(path, "a path is a list of Vertex")]
+        return traversal.path_weight(self.ref, ids, weight)
 
     def dual(self, name: str) -> "Mesh":
         """Store the dual of this closed mesh as a new mesh called ``name``, and return it; see `hestore.bulk.dual`.

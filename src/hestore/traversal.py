@@ -1,29 +1,35 @@
 """Local graph queries: answers about a few vertices, read from the store without a whole graph (SPEC §6).
 
-This module owns `k_ring`, `shortest_path` and the reads behind the induced
-views of ``to_networkx(kind, vertices=...)`` (`vertex_rows`,
-`halfedges_among`). They touch only the rows near the vertices asked about,
-so they cost the same on a mesh of a hundred elements and on one of
-millions, where a whole networkx graph takes seconds and gigabytes.
+This module owns `k_ring`, `shortest_path`, `path_weight` and the reads
+behind the induced views of ``to_networkx(kind, vertices=...)``
+(`vertex_rows`, `halfedges_among`). They touch only the rows near the
+vertices asked about, so they cost the same on a mesh of a hundred elements
+and on one of millions, where a whole networkx graph takes seconds and
+gigabytes. It also owns the names the graph views and the paths share —
+the view kinds (`KINDS`) and the derived edge weight (`LENGTH`) — here,
+below `hestore.graphs`, so that the command line offers them without
+importing networkx.
 
 How they read: a search expands a whole batch of vertices with one
 statement — the outgoing half-edges of every vertex of the batch, each with
-its target (its twin's origin), and for the weighted search the target's
-position — an ``IN`` list compiled per power-of-two size
-(`hestore.statements.in_list_bucket`), run through
+its target (its twin's origin), and for a weighted search the target's
+position or the edge's value of the property — an ``IN`` list compiled per
+power-of-two size (`hestore.statements.in_list_bucket`), run through
 `hestore.session.Session.fetch`. So a breadth-first search costs one query
 per level, and the reads see an open block's own edits and, on a view of the
 past (`hestore.Mesh.at`), that revision. The twin (and its origin's vertex
-row) is outer-joined on its whole key, as `hestore.navigation` does: a view
-rewrites such a join into two indexed joins (`hestore.journal.as_of`), where
-an inner join would make it read the whole table. A search's queries run
-inside one read snapshot, so it never mixes two committed states.
+row, and the edge's value row) is outer-joined on its whole key, as
+`hestore.navigation` does: a view rewrites such a join into two indexed
+joins (`hestore.journal.as_of`), where an inner join would make it read the
+whole table. A search's queries run inside one read snapshot, so it never
+mixes two committed states.
 
 The graph they search is the multigraph of `hestore.graphs` (``"multigraph"``):
 one node per vertex, one edge per mesh edge. Self-loops never shorten a path
 and parallel edges join the same two vertices, so a search only needs each
-vertex's distinct neighbours; the ``"length"`` of an edge is the Euclidean
-distance between its ends' positions, equal for parallel edges.
+vertex's distinct neighbours and, weighted, the lightest edge to each; the
+``"length"`` of an edge is the Euclidean distance between its ends'
+positions, equal for parallel edges.
 """
 
 from __future__ import annotations
@@ -31,28 +37,38 @@ from __future__ import annotations
 import heapq
 import math
 from contextlib import contextmanager
+from functools import partial
 from typing import Callable, Iterator, Sequence
 
 import sqlalchemy as sa
 
-from hestore import schema
+from hestore import properties, schema, values
 from hestore.columns import read_snapshot
 from hestore.errors import (
     InvalidInputError,
     InvariantViolationError,
     NoPathError,
+    PropertyNotFoundError,
     Violation,
     shown,
 )
 from hestore.navigation import exists, missing
 from hestore.statements import in_chunks, in_keys, indexed_by, padded
-from hestore.values import check_choice, check_integer
+from hestore.values import Property, check_integer
 from hestore.session import MeshRef
 
-__all__ = ["WEIGHTS", "k_ring", "shortest_path", "vertex_rows", "halfedges_among"]
+__all__ = [
+    "KINDS", "LENGTH", "NUMERIC", "k_ring", "shortest_path", "path_weight", "vertex_rows", "halfedges_among",
+]
 
-#: The weights `shortest_path` takes: None (every edge weighs 1) and ``"length"`` (`hestore.graphs.LENGTH`).
-WEIGHTS = (None, "length")
+#: The graph kinds `hestore.graphs.to_networkx` makes, the default first.
+KINDS = ("multigraph", "graph", "halfedge", "dual")
+
+#: The derived edge weight (and graph attribute): the Euclidean length of an edge, from its ends' positions.
+LENGTH = "length"
+
+#: The dtypes of the edge properties a path can be weighed by, one value per edge (no shape).
+NUMERIC = ("int64", "float64")
 
 #: The shortest ``IN`` list compiled. Compiling a statement costs about 0.7 ms, so a cold query would
 #: pay more for compiling the sizes 1, 2, 4 and 8 than for padding a short list to 16 (a few µs); a
@@ -85,14 +101,18 @@ def _consistent(ref: MeshRef) -> Iterator[None]:
         yield
 
 
-def _in_rows(ref: MeshRef, name: str, build: Callable[[int], object], ids: Sequence[int]) -> list[tuple]:
+def _in_rows(
+    ref: MeshRef, name: str, build: Callable[[int], object], ids: Sequence[int], binds: dict | None = None
+) -> list[tuple]:
     """The rows of ``build(size)`` (a statement with ``IN (:i0 … :i{size-1})``) for ``ids``, in chunks.
 
-    One statement per chunk of `MAX_IN` ids, compiled once per bucket size (`_LEAST_IN` at least).
+    One statement per chunk of `MAX_IN` ids, compiled once per bucket size
+    (`_LEAST_IN` at least); ``binds`` are its other parameters.
     """
     rows: list[tuple] = []
     for chunk, size in in_chunks(ids, _LEAST_IN):
-        rows.extend(ref.session.fetch(ref, (name, size), lambda size=size: build(size), padded(chunk, size)))
+        params = padded(chunk, size) if binds is None else {**padded(chunk, size), **binds}
+        rows.extend(ref.session.fetch(ref, (name, size), lambda size=size: build(size), params))
     return rows
 
 
@@ -105,7 +125,7 @@ def _twin():
 def _build_star(size: int):
     t, j = _twin()
     stmt = (
-        sa.select(_H.c.origin, t.c.origin)
+        sa.select(_H.c.origin, t.c.origin, _H.c.edge)
         .select_from(j)
         .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
     )
@@ -124,6 +144,23 @@ def _build_placed_star(size: int):
     return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
+def _build_values(table: sa.Table, size: int):
+    """``(id, v0)`` of the value rows of the scalar property ``:q`` of the edges ``:i0 …`` that have one.
+
+    A statement of its own, after the star, rather than a join in it: its
+    every plan is a probe of the value table's key per edge, where
+    PostgreSQL, planning a join to a value table it has no statistics of
+    yet (values written since its last ``ANALYZE``), read the property's
+    whole column for every batch (13 s instead of 16 ms for a path on a
+    90,601-vertex grid).
+    """
+    # No condition on ``part``: a scalar's one row is part 0, and a planner without statistics probes the key
+    # prefix it names, skipping ``id`` (reading the property's whole column) if it names ``part`` too.
+    return sa.select(table.c.id, table.c.v0).where(
+        table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"), table.c.id.in_(in_keys(size))
+    )
+
+
 def _broken(ref: MeshRef, origin: int) -> InvariantViolationError:
     return InvariantViolationError(
         [Violation("REF", "vertex", (origin,), f"an outgoing half-edge of vertex {origin} in mesh "
@@ -131,10 +168,10 @@ def _broken(ref: MeshRef, origin: int) -> InvariantViolationError:
     )
 
 
-def _stars(ref: MeshRef, ids: Sequence[int]) -> list[tuple[int, int]]:
-    """``(origin, target)`` of every outgoing half-edge of the vertices ``ids``: one query per `MAX_IN` of them."""
+def _stars(ref: MeshRef, ids: Sequence[int]) -> list[tuple[int, int, int]]:
+    """``(origin, target, edge)`` of every outgoing half-edge of the vertices ``ids``: a query per `MAX_IN` of them."""
     rows = _in_rows(ref, "traversal_star", _build_star, ids)
-    for origin, target in rows:
+    for origin, target, _edge in rows:
         if target is None:
             raise _broken(ref, origin)
     return rows
@@ -201,9 +238,6 @@ def _order(k: object) -> int:
     return k
 
 
-def _weight(weight: object) -> str | None:
-    return None if weight is None else check_choice(weight, WEIGHTS, "weight (None to count the edges)")
-
 
 # --------------------------------------------------------------------------
 # k-ring
@@ -264,12 +298,169 @@ def k_ring(ref: MeshRef, v: int, k: int) -> set[int]:
             if level == 0 and not stars:
                 exists(ref, "vertex", v)  # isolated, or not there at all: only then one query more
             found = []
-            for _origin, target in stars:
+            for _origin, target, _edge in stars:
                 if target not in seen:
                     seen.add(target)
                     found.append(target)
             frontier = found
     return seen
+
+
+# --------------------------------------------------------------------------
+# Weights
+
+
+def _weight_name(weight: object) -> str | None:
+    """``weight`` of `shortest_path` and `path_weight`: None or a name, which the mesh's catalogue resolves."""
+    if weight is None or isinstance(weight, str):
+        return weight
+    raise InvalidInputError(
+        f"weight is None, {LENGTH!r} or the name of a numeric edge property, not {type(weight).__name__} "
+        f"{shown(weight)}"
+    )
+
+
+def _numeric(prop: Property) -> bool:
+    return prop.dtype in NUMERIC and not prop.shape
+
+
+def _described(ref: MeshRef) -> str:
+    at = "" if ref.revision is None else f" at revision {ref.revision}"
+    return f"mesh {ref.name!r}{at}"
+
+
+def _distance(p: tuple, q: tuple) -> float:
+    return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+
+
+class _Counts:
+    """Every edge weighs 1 (`path_weight` without a weight; that search is `_bfs_path`)."""
+
+    zero = 0
+
+    def __init__(self, ref: MeshRef) -> None:
+        self.ref = ref
+
+    def rows(self, batch: Sequence[int]) -> list[tuple]:
+        return _stars(self.ref, batch)
+
+    def weigh(self, row: tuple) -> int | float:
+        return 1
+
+
+class _Lengths(_Counts):
+    """Edges weighed by their Euclidean length (`LENGTH`); the estimate is the straight line to the goal (A*).
+
+    ``place`` starts with the positions of the vertices given (`vertex_rows`)
+    and learns each target's from the rows that reach it.
+    """
+
+    zero = 0.0
+
+    def __init__(self, ref: MeshRef, vertices: list[tuple], goal: int | None) -> None:
+        super().__init__(ref)
+        self.place: dict[int, tuple | None] = {i: None if x is None else (x, y, z) for i, x, y, z in vertices}
+        self.goal = None if goal is None else self.place[goal]
+
+    def rows(self, batch: Sequence[int]) -> list[tuple]:
+        return _in_rows(self.ref, "traversal_placed_star", _build_placed_star, batch)
+
+    def weigh(self, row: tuple) -> float:
+        origin, target, edge, x, y, z = row
+        if self.place[origin] is None:
+            raise self._unplaced(edge, origin)
+        if x is None or y is None or z is None:
+            raise self._unplaced(edge, target)
+        return _distance(self.place[origin], self.place.setdefault(target, (x, y, z)))
+
+    def estimate(self, v: int) -> float:
+        return 0.0 if self.goal is None else _distance(self.place[v], self.goal)
+
+    def _unplaced(self, edge: int, vertex: int) -> InvalidInputError:
+        return InvalidInputError(
+            f"cannot weigh the paths of {_described(self.ref)} by {LENGTH}: edge {edge} has no length: "
+            f"vertex {vertex} has no position"
+        )
+
+
+class _Values:
+    """Edges weighed by a numeric edge property: an edge's value, else the default; no estimate (Dijkstra)."""
+
+    def __init__(self, ref: MeshRef, prop: Property) -> None:
+        self.ref, self.prop = ref, prop
+        self.number = float if prop.dtype == "float64" else int
+        self.zero = self.number(0)
+        self.table = values.table_of(prop.dtype)
+
+    def rows(self, batch: Sequence[int]) -> list[tuple]:
+        """``(origin, target, edge, has a value, value)``: the stars, then their edges' values, a query each."""
+        stars = _stars(self.ref, batch)
+        build = partial(_build_values, self.table)
+        edges = sorted({edge for _, _, edge in stars})
+        found = dict(_in_rows(self.ref, f"traversal_{self.table.name}", build, edges, {"q": self.prop.id}))
+        return [(origin, target, edge, edge in found, found.get(edge)) for origin, target, edge in stars]
+
+    def weigh(self, row: tuple) -> int | float:
+        edge, has, value = row[2:]
+        name = self.prop.name
+        if not has:
+            value = self.prop.default
+            if value is None:
+                raise self._refused(f"edge {edge} has no value of property {name!r}, which has no default")
+        value = math.nan if value is None else self.number(value)  # a float's NaN is stored as NULL
+        if value != value:
+            raise self._refused(f"edge {edge} has {name} NaN")
+        if value < 0:
+            raise self._refused(
+                f"edge {edge} has a negative {name} ({value}); a shortest path needs weights of 0 or more"
+            )
+        return value
+
+    def estimate(self, v: int) -> int | float:
+        return self.zero
+
+    def _refused(self, reason: str) -> InvalidInputError:
+        # The mesh by its name alone ('w', not mesh 'w'): the words ``hestore graph … path --weight`` has always said.
+        at = "" if self.ref.revision is None else f" at revision {self.ref.revision}"
+        return InvalidInputError(f"cannot weigh the paths of {self.ref.name!r}{at} by {self.prop.name}: {reason}")
+
+
+def _weigher(ref: MeshRef, weight: str | None, vertices: list[tuple], goal: int | None = None):
+    """How ``weight`` weighs this mesh's edges: None (each 1), `_Lengths` or `_Values`; one catalogue read.
+
+    ``vertices`` are the `vertex_rows` of the vertices the caller starts
+    from, ``goal`` the vertex an A* search aims at.
+
+    Raises
+    ------
+    PropertyNotFoundError
+        ``weight`` is neither ``"length"`` nor an edge property.
+    InvalidInputError
+        ``weight`` is an edge property that is not a number (`NUMERIC`, no shape).
+
+    Both carry ``weights``: the names a path of this mesh can be weighed by.
+    """
+    if weight is None:
+        return None
+    edge = properties.properties(ref, "edge")
+    prop = edge.get(weight)
+    if prop is None and weight == LENGTH:
+        return _Lengths(ref, vertices, goal)
+    if prop is not None and _numeric(prop):
+        return _Values(ref, prop)
+    if prop is None:
+        exc = PropertyNotFoundError(f"mesh {ref.name!r} has no edge property named {shown(weight)}")
+    else:
+        shaped = f" of shape {prop.shape}" if prop.shape else ""
+        exc = InvalidInputError(f"edge property {weight!r} of mesh {ref.name!r} is {prop.dtype}{shaped}, not a number")
+    # An edge property named "length" is that property, as in to_networkx's attrs: the name is listed once.
+    exc.weights = (LENGTH, *(name for name, p in edge.items() if _numeric(p) and name != LENGTH))
+    raise exc
+
+
+def _by_edge(row: tuple) -> tuple:
+    """Rows in edge order: of several edges the search cannot weigh, it names the lowest id, on every backend."""
+    return row[2], row[0]
 
 
 # --------------------------------------------------------------------------
@@ -280,12 +471,33 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
     """A shortest path from vertex ``a`` to vertex ``b``, as its vertices.
 
     ``weight=None`` counts edges: a bidirectional breadth-first search that
-    expands the smaller side's whole frontier with one query.
-    ``weight="length"`` sums Euclidean edge lengths: an A* search whose
-    estimate is the straight-line distance to ``b`` (never more than the
-    length of any way there, since an edge's length is the straight-line
-    distance between its ends), expanding the `_BATCH` vertices of least
-    estimate with one query that brings their neighbours' positions too.
+    expands the smaller side's whole frontier with one query. A weight sums
+    the weights of the path's edges, the lightest of parallel ones counting,
+    in a search from ``a`` that expands the `_BATCH` vertices of least
+    estimate with one query, which brings what weighs their edges along:
+
+    ``"length"``
+        The Euclidean length of an edge, from its ends' positions: an A*
+        search whose estimate is the straight-line distance to ``b`` (never
+        more than the length of any way there, since an edge's length is the
+        straight-line distance between its ends).
+    the name of an edge property
+        Its value: an ``int64`` or ``float64`` property of one value per
+        edge (`NUMERIC`, no shape); an edge without a value weighs the
+        property's default. Dijkstra's search (no estimate). An edge
+        property named ``"length"`` is that property, as in
+        `hestore.graphs.to_networkx`'s ``attrs``.
+
+    The search weighs every edge at every vertex it expands — self-loops
+    and the parallel edges it does not take included; ``a`` itself and, by a
+    property, at least every vertex nearer to ``a`` than ``b`` is, and at
+    most a batch more (never ``b``) — and refuses the first one (the lowest
+    edge id of a batch) that has no weight or cannot be one: a length with an end without a position, a
+    property value unset without a default, NaN or below 0 (Dijkstra's
+    search is only right for weights of 0 or more). ``inf`` is a weight: a
+    path across such an edge weighs ``inf``, and is the answer only when no
+    lighter one exists. Edges the search never reaches are never read, so
+    what they hold does not matter.
 
     Parameters
     ----------
@@ -293,17 +505,17 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
         The mesh (its identity: the facade passes `Mesh.ref`).
     a, b : int
         The ids of the first and the last vertex.
-    weight : {None, "length"}
-        What a path's length is: its number of edges, or the sum of their
-        Euclidean lengths (from the positions of their ends).
+    weight : None, "length" or str
+        What a path's length is: its number of edges, the sum of their
+        Euclidean lengths, or the sum of their values of an edge property.
 
     Returns
     -------
     list of int
         Vertex ids from ``a`` to ``b``, consecutive ones joined by an edge; ``[a]`` when
         ``a == b``. As short as networkx's ``shortest_path`` on the mesh's
-        multigraph (with ``"length"``: weighing each pair of vertices by its
-        lightest edge); among paths of equal length, any one.
+        multigraph (weighted: weighing each pair of vertices by its lightest
+        edge); among paths of equal length, any one.
 
     Raises
     ------
@@ -311,24 +523,33 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
         No path joins them (they are in different components).
     ElementNotFoundError
         ``a`` or ``b`` does not exist.
+    PropertyNotFoundError
+        ``weight`` is a name other than ``"length"`` that no edge property
+        has; its ``weights`` attribute lists the names that weigh.
     InvalidInputError
-        ``weight`` is neither None nor ``"length"``; or it is ``"length"``
-        and the search meets an edge with an end that has no position (so no
-        length), as ``hestore graph NAME path --weight length`` does.
+        ``weight`` is neither None nor a name; it names an edge property
+        that is not a number (``weights`` lists the names that weigh); or
+        the search meets an edge it cannot weigh (see above), as ``hestore
+        graph NAME path --weight`` says it.
 
     Examples
     --------
     From ``a`` to ``c`` along the legs of a right triangle (9 + 12) or along
-    its hypotenuse (15), cut into three edges of 5:
+    its hypotenuse (15), cut into three edges of 5; the edge ``b``–``c``
+    costs 5, every other one the default 1:
 
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> xyz = [(0, 0, 0), (9, 0, 0), (9, 12, 0), (6, 8, 0), (3, 4, 0)]
     >>> a, b, c, q, p = (mesh.add_vertex(position) for position in xyz)
     >>> pentagon = mesh.add_polygon([a, b, c, q, p])
+    >>> _ = mesh.add_property("edge", "cost", "int64", default=1)
+    >>> mesh.find_halfedge(b, c).edge["cost"] = 5
     >>> shortest_path(mesh.ref, a.id, c.id)  # the fewest edges
     [0, 1, 2]
     >>> shortest_path(mesh.ref, a.id, c.id, "length")  # the shortest
+    [0, 4, 3, 2]
+    >>> shortest_path(mesh.ref, a.id, c.id, "cost")  # the cheapest: 3, not 6
     [0, 4, 3, 2]
     >>> lone = mesh.add_vertex()
     >>> shortest_path(mesh.ref, a.id, lone.id)
@@ -336,23 +557,21 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
     ...
     hestore.errors.NoPathError: no path from vertex 0 to vertex 5 in mesh 'm': they are in different components
     """
-    weight = _weight(weight)
+    weight = _weight_name(weight)
     with _consistent(ref):
-        if weight is None:
-            vertex_rows(ref, sorted({a, b}))  # both there, in one query
-            path = [a] if a == b else _bfs_path(ref, a, b)
+        vertices = vertex_rows(ref, sorted({a, b}))  # both there, in one query
+        weigher = _weigher(ref, weight, vertices, goal=b)
+        if a == b:
+            path = [a]
+        elif weigher is None:
+            path = _bfs_path(ref, a, b)
         else:
-            path = _astar_path(ref, a, b)
+            path = _least_path(ref, a, b, weigher)
     if path is None:
         raise NoPathError(
             f"no path from vertex {a} to vertex {b} in {_described(ref)}: they are in different components"
         )
     return path
-
-
-def _described(ref: MeshRef) -> str:
-    at = "" if ref.revision is None else f" at revision {ref.revision}"
-    return f"mesh {ref.name!r}{at}"
 
 
 def _walk(parents: dict[int, int | None], v: int) -> list[int]:
@@ -378,7 +597,7 @@ def _bfs_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
         parents, frontier = sides[k]
         others = sides[1 - k][0]
         found = []
-        for origin, target in _stars(ref, frontier):
+        for origin, target, _edge in _stars(ref, frontier):
             if target in parents:
                 continue
             parents[target] = origin
@@ -391,42 +610,29 @@ def _bfs_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
     return None
 
 
-def _distance(p: tuple, q: tuple) -> float:
-    return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+def _least_path(ref: MeshRef, a: int, b: int, weigher: _Lengths | _Values) -> list[int] | None:
+    """Least total weight: A* with the weigher's estimate (Dijkstra: 0), `_BATCH` vertices a query.
 
-
-def _unweighable(ref: MeshRef, edge: int, vertex: int) -> InvalidInputError:
-    return InvalidInputError(
-        f"cannot weigh the paths of {_described(ref)} by length: edge {edge} has no length: "
-        f"vertex {vertex} has no position"
-    )
-
-
-def _astar_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
-    """Least total length: A* with the straight-line distance to ``b``, `_BATCH` vertices a query.
-
-    A vertex may be expanded before its shortest distance is known (it was
-    in a batch with a better one); it is queued again when a shorter way to
-    it turns up, and the search stops only when no queued estimate is below
-    the best length found to ``b`` — so the answer is exact.
+    A vertex may be expanded before its least weight is known (it was in a
+    batch with a better one); it is queued again when a lighter way to it
+    turns up, and the search stops only when no queued estimate is below
+    the least weight found to ``b`` — so the answer is exact. ``b`` itself
+    is never expanded. Weights of ``inf`` are kept: a vertex first reached
+    at ``inf`` is recorded and expanded like any other.
     """
-    rows = {i: None if x is None else (x, y, z) for i, x, y, z in vertex_rows(ref, sorted({a, b}))}
-    if a == b:
-        return [a]
-    goal = rows[b]
-    place: dict[int, tuple | None] = {a: rows[a]}
-
-    def estimate(v: int) -> float:
-        return 0.0 if goal is None else _distance(place[v], goal)
-
-    dist = {a: 0.0}
+    zero = weigher.zero
+    dist = {a: zero}
     parents: dict[int, int | None] = {a: None}
-    expanded: dict[int, float] = {}
-    best = math.inf
-    queue = [(0.0, 0.0, a)]
-    while queue and queue[0][0] < best:
+    expanded: dict[int, int | float] = {}
+    best = None  # the least weight found to b
+
+    def promising(queue: list) -> bool:
+        return bool(queue) and (best is None or queue[0][0] < best)
+
+    queue = [(zero, zero, a)]
+    while promising(queue):
         batch = []
-        while queue and len(batch) < _BATCH and queue[0][0] < best:
+        while len(batch) < _BATCH and promising(queue):
             _, d, v = heapq.heappop(queue)
             if d > dist[v] or expanded.get(v) == d:
                 continue  # a stale entry, or expanded at this distance already
@@ -434,26 +640,87 @@ def _astar_path(ref: MeshRef, a: int, b: int) -> list[int] | None:
             batch.append(v)
         if not batch:
             continue
-        for origin, target, edge, x, y, z in _in_rows(ref, "traversal_placed_star", _build_placed_star, batch):
+        for row in sorted(weigher.rows(batch), key=_by_edge):
+            origin, target = row[0], row[1]
             if target is None:
                 raise _broken(ref, origin)
-            if place[origin] is None:
-                raise _unweighable(ref, edge, origin)
-            if x is None or y is None or z is None:
-                raise _unweighable(ref, edge, target)
+            w = weigher.weigh(row)
             if target == origin:
                 continue
-            if target not in place:
-                place[target] = (x, y, z)
-            d = dist[origin] + _distance(place[origin], place[target])
-            if d < dist.get(target, math.inf):
+            d = dist[origin] + w
+            if target not in dist or d < dist[target]:
                 dist[target] = d
                 parents[target] = origin
                 if target == b:
                     best = d
                 else:
-                    heapq.heappush(queue, (d + estimate(target), d, target))
-    if best == math.inf:
+                    heapq.heappush(queue, (d + weigher.estimate(target), d, target))
+    if best is None:
         return None
     return _walk(parents, b)[::-1]
 
+
+def path_weight(ref: MeshRef, path: list[int], weight: str | None = None) -> int | float:
+    """The weight of a path: its number of edges, or the sum of its edges' weights as `shortest_path` weighs them.
+
+    Each step from one vertex to the next weighs its lightest edge; every
+    edge between the two is weighed, so one that cannot be (see
+    `shortest_path`) is refused even when a parallel one could. One query
+    for the vertices, one for the catalogue (with a weight), one for the
+    edges out of every `MAX_IN` of them.
+
+    Parameters
+    ----------
+    ref : hestore.session.MeshRef
+        The mesh (its identity: the facade passes `Mesh.ref`).
+    path : list of int
+        Vertex ids, at least one; consecutive ones must be joined by an edge.
+    weight : None, "length" or str
+        As `shortest_path`'s.
+
+    Returns
+    -------
+    int or float
+        An ``int`` for None and ``int64`` properties (``0`` for a path of one
+        vertex), a ``float`` for ``"length"`` and ``float64`` ones.
+
+    Raises
+    ------
+    ElementNotFoundError
+        A vertex of the path does not exist.
+    PropertyNotFoundError, InvalidInputError
+        As `shortest_path`'s; and `InvalidInputError` for an empty path or
+        two consecutive vertices that no edge joins.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> a, b, c = (mesh.add_vertex((x, 0, 0)) for x in (0, 3, 7))
+    >>> ab, bc, again = mesh.add_edge(a, b), mesh.add_edge(b, c), mesh.add_edge(b, c)
+    >>> _ = mesh.add_property("edge", "toll", "float64", default=2.5)
+    >>> again["toll"] = 0.5
+    >>> path = [a.id, b.id, c.id]
+    >>> path_weight(mesh.ref, path), path_weight(mesh.ref, path, "length"), path_weight(mesh.ref, path, "toll")
+    (2, 7.0, 3.0)
+    """
+    weight = _weight_name(weight)
+    if not path:
+        raise InvalidInputError("a path is a list of vertices, at least one, not an empty one")
+    steps = list(zip(path, path[1:]))
+    with _consistent(ref):
+        vertices = vertex_rows(ref, sorted(set(path)))
+        weigher = _weigher(ref, weight, vertices) or _Counts(ref)
+        between: dict[tuple[int, int], list[tuple]] = {}
+        wanted = set(steps)
+        for row in sorted(weigher.rows(sorted({u for u, _ in steps})), key=_by_edge):
+            if row[1] is None:
+                raise _broken(ref, row[0])
+            if (row[0], row[1]) in wanted:
+                between.setdefault((row[0], row[1]), []).append(row)
+    total = weigher.zero
+    for u, v in steps:
+        if (u, v) not in between:
+            raise InvalidInputError(f"vertices {u} and {v} of the path are not joined by an edge in {_described(ref)}")
+        total += min(weigher.weigh(row) for row in between[u, v])
+    return total

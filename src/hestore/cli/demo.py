@@ -1,4 +1,4 @@
-"""The demo behind ``hestore demo``: one mesh showing what hestore can store.
+"""The demo behind ``hestore demo`` (`hestore.cli.commands.cmd_demo`): one mesh showing what hestore can store.
 
 It builds the mesh ``"demo"`` — a polygon fan, a wire edge, a self-loop
 bounding a 1-gon, two parallel edges bounding a 2-gon and two triangles
@@ -71,7 +71,7 @@ def run(store: Store, out: Callable[[str], object] = print) -> Mesh:
     Examples
     --------
     >>> import hestore
-    >>> from hestore import demo
+    >>> from hestore.cli import demo
     >>> store = hestore.open("sqlite://")
     >>> mesh = demo.run(store, out=lambda line: None)
     >>> mesh.name, mesh.counts().polygons, mesh.check()
