@@ -9,6 +9,11 @@ at once, with ``--quick`` and the common options (``--backends``,
 the shared meshes) passed on. Their output goes straight through; a summary
 of exit statuses and times ends it. The exit status is non-zero when any
 benchmark's is (a failed correctness gate or a crash, never a slow figure).
+
+Run by hand (``tests/test_bench.py`` runs it with ``--quick --benchmarks
+edits``). It owns only the order of the benchmarks and what it passes on;
+the options, the subprocess runner and the summary table are the harness's
+(``bench/harness/``).
 """
 
 from __future__ import annotations
@@ -17,10 +22,11 @@ import os
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from harness.cli import Parser, meshes_dir
+from harness.runner import log, run_command
+from harness.tables import print_table
 
-from _common import HERE, Parser, log, meshes_dir, print_table, run_command, selected_backends  # noqa: E402
-
+HERE = os.path.dirname(os.path.abspath(__file__))
 BENCHMARKS = ("edits", "import", "graph", "reads", "properties", "euler", "repair", "history")
 TAKES_MESHES = ("import", "graph", "repair")  # the benchmarks that take --meshes-dir
 
@@ -32,13 +38,9 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes-dir", default=meshes_dir(), help=f"passed on to {', '.join(TAKES_MESHES)}")
     ap.add_argument("--timeout", type=float, default=None, help="seconds allowed per benchmark (default: no limit)")
     args = ap.parse_args(argv)
-    backends = selected_backends(ap, args)
-    chosen = [b.strip() for b in args.benchmarks.split(",") if b.strip()]
-    for b in chosen:
-        if b not in BENCHMARKS:
-            ap.error(f"unknown benchmark {b!r} (choose from {', '.join(BENCHMARKS)})")
+    chosen = ap.names(args.benchmarks, BENCHMARKS, "benchmark")
 
-    common = ["--backends", ",".join(backends), "--pg-url", args.pg_url]
+    common = ["--backends", ",".join(args.backends), "--pg-url", args.pg_url]
     if args.quick:
         common.append("--quick")
     if args.workdir:
@@ -63,4 +65,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -29,51 +29,37 @@ at the end ``mesh.check()`` must come back empty.
 In-transaction edit timings do not include writing: hestore keeps a
 transaction's changes in a unit of work and writes them at commit (or before a
 read). The 1,000-edit figure includes those writes.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floor and the targets; the
+harness (``bench/harness/``) parses the options, opens each backend and
+prints the report.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import random
 import shutil
-import sys
-import tempfile
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import sqlalchemy as sa
 
-import sqlalchemy as sa  # noqa: E402
+import hestore
 
-import hestore  # noqa: E402
-from _common import (  # noqa: E402
-    Statements,
-    Figure,
-    Parser,
-    TABLES,
-    Place,
-    gc_paused,
-    fmt_time,
-    log,
-    maxrss,
-    median,
-    open_backend,
-    pc,
-    percentile,
-    pg_connect,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_table,
-    selected_backends,
-    time_each,
-    url_of,
-    verdict,
-)
+from harness.bench import Bench
+from harness.cli import Parser
+from harness.databases import TABLES, Place, pg_connect, url_of
+from harness.profiling import Statements, traced
+from harness.runner import log
+from harness.stats import median
+from harness.tables import Figure, fmt_time, verdict
+from harness.timing import gc_paused, maxrss, pc, time_each
+from workloads import Rollback
 
 MESH = "grid"
 US, MS = 1_000, 1_000_000
@@ -81,10 +67,10 @@ TARGET_EDIT = 1 * MS  # one add_polygon / remove_edge inside a transaction, medi
 TARGET_AMORTISED = 100 * US  # per edit of a 1,000-edit transaction, commit included
 TARGET_COMMIT = 2 * MS  # commit of a 1-polygon transaction, median (SPEC: SQLite WAL)
 QUICK = {"sizes": "1000", "repeat": 20, "warmup": 5, "txn_runs": 1, "edits": 100}
-
-
-class _Rollback(Exception):
-    """Raised at the end of a measuring block to undo it."""
+ABOUT = """\
+In-transaction timings exclude writing: hestore writes a transaction's changes at commit (or before a
+read); the many-edit figure includes them. The commit target (≤ 2 ms) is SPEC's for SQLite WAL; it is
+applied to PostgreSQL as well. The floor is 12 single-row UPDATEs in engine.begin() on the same database."""
 
 
 @dataclass
@@ -104,11 +90,14 @@ class Samples:
 
 @dataclass
 class SizeResult:
+    """What one size on one backend gave: its figures, statement counts, notes and failed gates."""
+
     backend: str
     size: int
     figures: list[Samples] = field(default_factory=list)
     sql: list[tuple[str, str]] = field(default_factory=list)  # (what, counts)
     notes: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
 
 
 # -- the grid -----------------------------------------------------------------------
@@ -461,13 +450,6 @@ class Copies:
             ).fetchone()[0]
 
 
-# -- counting the SQL hestore sends ----------------------------------------------------------------------
-
-
-def traced(store: hestore.Store, counter: Statements | None):
-    return store.session.traced(counter) if counter else contextlib.nullcontext()
-
-
 # -- choosing edits ------------------------------------------------------------------
 
 
@@ -480,19 +462,25 @@ def _pick(items, rng, ok, tries=64):
     return items.choice(rng), False
 
 
-def plan_cold_adds(model: Model, rng: random.Random, k: int) -> list[tuple[int, int]]:
-    """Up to ``k`` boundary half-edges a→b, no two sharing a vertex."""
+def _plan_cold(items: IndexedSet, rng: random.Random, k: int, footprint, ok=None) -> list[tuple[int, int]]:
+    """Up to ``k`` random ``items`` whose ``footprint`` vertices no other one's share (and that pass ``ok``)."""
     touched: set[int] = set()
     out = []
     misses = 0
     while len(out) < k and misses < 400:
-        a, b = model.boundary.choice(rng)
-        if a in touched or b in touched:
+        x = items.choice(rng)
+        fp = footprint(x)
+        if not fp.isdisjoint(touched) or (ok is not None and not ok(x)):
             misses += 1
             continue
-        out.append((a, b))
-        touched.update((a, b))
+        out.append(x)
+        touched |= fp
     return out
+
+
+def plan_cold_adds(model: Model, rng: random.Random, k: int) -> list[tuple[int, int]]:
+    """Up to ``k`` boundary half-edges a→b, no two sharing a vertex."""
+    return _plan_cold(model.boundary, rng, k, set)
 
 
 def _clean_interior(model: Model, u: int, v: int) -> bool:
@@ -502,18 +490,8 @@ def _clean_interior(model: Model, u: int, v: int) -> bool:
 
 def plan_cold_removes(model: Model, rng: random.Random, k: int) -> list[tuple[int, int]]:
     """Up to ``k`` interior edges away from the boundary, whose triangles share no vertex."""
-    touched: set[int] = set()
-    out = []
-    misses = 0
-    while len(out) < k and misses < 400:
-        u, v = model.interior.choice(rng)
-        fp = model.remove_footprint(u, v)
-        if not fp.isdisjoint(touched) or not _clean_interior(model, u, v):
-            misses += 1
-            continue
-        out.append((u, v))
-        touched |= fp
-    return out
+    return _plan_cold(model.interior, rng, k, lambda e: model.remove_footprint(*e),
+                      lambda e: _clean_interior(model, *e))
 
 
 ADD, REMOVE = 0, 1
@@ -587,9 +565,9 @@ def run_mixed(store: hestore.Store, mesh: hestore.Mesh, plan: list, *, commit: b
                 t1 = pc()
                 if not commit:
                     mesh.counts()  # forces the flush, so that its statements can be counted
-                    raise _Rollback
+                    raise Rollback
             t2 = pc()
-    except _Rollback:
+    except Rollback:
         t2 = pc()
     return t2 - t0, t2 - t1, newv
 
@@ -650,8 +628,8 @@ def measure_single(store, mesh, model, rng, kind: str, n: int, warm: int, block:
                     before = counter.snapshot()
                     mesh.counts()  # flushes the block's writes
                     cnt_flush += counter.snapshot() - before
-                raise _Rollback
-        except _Rollback:
+                raise Rollback
+        except Rollback:
             pass
     return samples[warm:], vsamples[warm:], (cnt_op, cnt_flush, n_ops)
 
@@ -773,11 +751,10 @@ def run_size(copies: Copies, size: int, args, rng: random.Random) -> SizeResult:
         expected = model.signature(vmap)
         actual = Model.load(engine, mesh.id).signature()
         if expected != actual:
-            msg = (f"{bname} {size}: after the {args.edits}-edit transaction the database differs from the plan: "
-                   f"polygons {actual[0]} vs {expected[0]}, edges {actual[1]} vs {expected[1]}, "
-                   f"boundary half-edges {len(actual[2])} vs {len(expected[2])}")
-            res.notes.append("MISMATCH: " + msg)
-            log(msg)
+            res.problems.append(f"after the {args.edits}-edit transaction the database differs from the plan: "
+                                f"polygons {actual[0]} vs {expected[0]}, edges {actual[1]} vs {expected[1]}, "
+                                f"boundary half-edges {len(actual[2])} vs {len(expected[2])}")
+            log(f"{bname} {size}: {res.problems[-1]}")
         res.notes.append(
             f"{args.edits}-edit run {run + 1}: {fmt_time(total / 1e9)} total, {fmt_time(tail / 1e9)} flush+COMMIT, "
             f"{stats['adds']} adds / {stats['removes']} removes"
@@ -799,8 +776,8 @@ def run_size(copies: Copies, size: int, args, rng: random.Random) -> SizeResult:
         dt = time.perf_counter() - t0
         res.notes.append(f"mesh.check() after the runs: {len(violations)} violation(s), {dt:.2f} s")
         if violations:
-            res.notes.append(f"MISMATCH: check() found {len(violations)} violations, e.g. {violations[:3]}")
-            log(f"{bname} {size}: check() found {len(violations)} violations, e.g. {violations[:3]}")
+            res.problems.append(f"check() found {len(violations)} violations, e.g. {violations[:3]}")
+            log(f"{bname} {size}: {res.problems[-1]}")
     store.close()
     engine.dispose()
     return res
@@ -810,8 +787,7 @@ def run_size(copies: Copies, size: int, args, rng: random.Random) -> SizeResult:
 
 
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)")
+    ap = Parser(__doc__, quick=QUICK, seed=20240601)
     ap.add_argument("--sizes", default="1000,10000,100000", help="mesh sizes in polygons, comma-separated")
     ap.add_argument("--repeat", type=int, default=200, help="timed calls per single-operation figure (default 200)")
     ap.add_argument("--warmup", type=int, default=20, help="untimed calls before each figure (default 20)")
@@ -823,123 +799,83 @@ def main(argv=None) -> int:
     ap.add_argument("--no-count", dest="count", action="store_false", help="skip the SQL statement counts")
     ap.add_argument("--no-check", dest="check", action="store_false", help="skip mesh.check() at the end")
     args = ap.parse_args(argv)
-
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
-    backends = selected_backends(ap, args)
     rng = random.Random(args.seed)
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_edits_")
-    os.makedirs(workdir, exist_ok=True)
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
 
-    builds, results, skipped = [], [], []
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
+    builds, results = [], []
+    with Bench(args, "edits") as bench:
+        for place in bench.for_each_backend():
+            bname, copies, rate = place.backend, Copies(place), None
+            for size in sizes:
+                if rate and size / rate > args.max_build_seconds:
+                    bench.report.skipped.append(
+                        f"{bname} {size}: skipped, the build would take ~{size / rate:.0f} s at "
+                        f"{rate:.0f} polygons/s (limit {args.max_build_seconds:.0f} s)"
+                    )
                     continue
-                pg_version = place.version or pg_version
-                copies = Copies(place)
-                rate = None
-                for size in sizes:
-                    if rate and size / rate > args.max_build_seconds:
-                        skipped.append(
-                            f"{bname} {size}: skipped, the build would take ~{size / rate:.0f} s at "
-                            f"{rate:.0f} polygons/s (limit {args.max_build_seconds:.0f} s)"
-                        )
-                        continue
-                    log(f"{bname} {size}: building")
-                    store = hestore.open(copies.build_url(size))
-                    b = build_grid(store, size)
-                    store.close()
-                    rate = b.rate
-                    builds.append((bname, b, copies.size_bytes(size), maxrss()))
-                    log(f"{bname} {size}: built {b.polygons} polygons in {b.seconds:.2f} s ({b.rate:.0f}/s)")
-                    results.append(run_size(copies, size, args, rng))
-                    log(f"{bname} {size}: done; peak RSS {maxrss() / 2**20:.0f} MiB")
-    finally:
-        if not args.workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-
-    report(args, builds, results, skipped)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if any("MISMATCH" in n for r in results for n in r.notes) else 0
+                log(f"{bname} {size}: building")
+                store = hestore.open(copies.build_url(size))
+                b = build_grid(store, size)
+                store.close()
+                rate = b.rate
+                builds.append((bname, b, copies.size_bytes(size), maxrss()))
+                log(f"{bname} {size}: built {b.polygons} polygons in {b.seconds:.2f} s ({b.rate:.0f}/s)")
+                results.append(run_size(copies, size, args, rng))
+                log(f"{bname} {size}: done; peak RSS {maxrss() / 2**20:.0f} MiB")
+    report(bench, builds, results)
+    return bench.finish()
 
 
 def figures_of(results: list[SizeResult]) -> list[Figure]:
-    out = []
-    for r in results:
-        for f in r.figures:
-            out.append(Figure(
-                f.name, r.backend, f.median / 1e9,
-                floor=f.floor / 1e9 if f.floor else None,
-                target=("≤ " + fmt_time(f.target / 1e9)) if f.target else "—",
-                verdict=verdict(None if f.target is None else f.median <= f.target),
-                mesh=f"{r.size:,}", n=len(f.samples), p90=percentile(f.samples, 0.9) / 1e9 if f.p90 else None,
-            ))
-    return out
+    return [Figure.of_calls(f.name, r.backend, f.samples, p90=f.p90,
+                            floor=f.floor / 1e9 if f.floor else None,
+                            target=("≤ " + fmt_time(f.target / 1e9)) if f.target else "—",
+                            verdict=verdict(None if f.target is None else f.median <= f.target), mesh=f"{r.size:,}")
+            for r in results for f in r.figures]
 
 
-def report(args, builds, results, skipped) -> None:
-    print()
-    print(f"hestore edit benchmark — seed {args.seed}, {args.repeat} timed calls per figure, "
-          f"{args.txn_runs} × {args.edits}-edit transactions per size")
-    print()
-    print("Build: triangulated grid through the public API, one transaction "
-          "(add_vertex ×V, add_polygon ×F, commit). PostGIS Topology: 45–240 triangles/s.")
+def growth_rows(results: list[SizeResult]) -> tuple[list[int], list[list[str]]]:
+    """Each figure's median at each size, per backend, and the ratio of the largest size's to the smallest's."""
+    names = [f.name for f in results[0].figures]
+    sizes = sorted({r.size for r in results})
     rows = []
-    for bname, b, nbytes, rss in builds:
-        rows.append([
-            bname, f"{b.polygons:,}", f"{b.vertices:,}", f"{b.seconds:.2f} s",
-            f"{b.seconds_vertices:.2f} / {b.seconds_polygons:.2f} / {b.seconds_commit:.2f} s",
-            f"{b.rate:,.0f}", f"{nbytes / 2**20:.1f} MiB", f"{rss / 2**20:.0f} MiB",
-        ])
-    print_table(["backend", "polygons", "vertices", "build", "vertices / polygons / commit", "polygons/s", "db size",
-                 "peak RSS so far"], rows, "llrrrrrr")
-    figures = figures_of(results)
-    print()
-    print("Edits (time: the median of the n timed calls, p90 beside it; mesh: polygons; target = SPEC §9; "
-          "floor measured in the same run):")
-    if figures:
-        print_figures(figures)
+    for bname in dict.fromkeys(r.backend for r in results):
+        by_size = {r.size: r for r in results if r.backend == bname}
+        for i, name in enumerate(names):
+            vals = [by_size[s].figures[i].median if s in by_size else None for s in sizes]
+            present = [v for v in vals if v is not None]
+            ratio = f"{present[-1] / present[0]:.2f}" if len(present) > 1 else "—"
+            rows.append([bname, name.strip()] + [fmt_time(None if v is None else v / 1e9) for v in vals] + [ratio])
+    return sizes, rows
+
+
+def report(bench: Bench, builds: list, results: list[SizeResult]) -> None:
+    args, rep = bench.args, bench.report
+    rep.title(f"hestore edit benchmark — seed {args.seed}, {args.repeat} timed calls per figure, "
+              f"{args.txn_runs} × {args.edits}-edit transactions per size")
+    rows = [[bname, f"{b.polygons:,}", f"{b.vertices:,}", f"{b.seconds:.2f} s",
+             f"{b.seconds_vertices:.2f} / {b.seconds_polygons:.2f} / {b.seconds_commit:.2f} s",
+             f"{b.rate:,.0f}", f"{nbytes / 2**20:.1f} MiB", f"{rss / 2**20:.0f} MiB"]
+            for bname, b, nbytes, rss in builds]
+    rep.table("Build: triangulated grid through the public API, one transaction (add_vertex ×V, add_polygon ×F, "
+              "commit). PostGIS Topology: 45–240 triangles/s.",
+              ["backend", "polygons", "vertices", "build", "vertices / polygons / commit", "polygons/s", "db size",
+               "peak RSS so far"], rows, "llrrrrrr")
+    rep.figures(figures_of(results), caption="Edits (time: the median of the n timed calls, p90 beside it; mesh: "
+                                             "polygons; target = SPEC §9; floor measured in the same run):")
     if results:
-        print()
-        print("Growth with the mesh (median at each size; ratio = largest size / smallest size):")
-        names = [f.name for f in results[0].figures]
-        sizes = sorted({r.size for r in results})
-        rows = []
-        for bname in dict.fromkeys(r.backend for r in results):
-            by_size = {r.size: r for r in results if r.backend == bname}
-            for i, name in enumerate(names):
-                vals = [by_size[s].figures[i].median if s in by_size else None for s in sizes]
-                present = [v for v in vals if v is not None]
-                ratio = f"{present[-1] / present[0]:.2f}" if len(present) > 1 else "—"
-                rows.append([bname, name.strip()] + [fmt_time(None if v is None else v / 1e9) for v in vals] + [ratio])
-        print_table(["backend", "figure"] + [f"{s:,}" for s in sizes] + ["ratio"], rows, "ll" + "r" * (len(sizes) + 1))
-    notes = [(r.backend, r.size, n) for r in results for n in r.notes]
-    if notes:
-        print()
-        print("Notes:")
-        for bname, size, n in notes:
-            print(f"  {bname} {size:,}: {n}")
-    sql = [(r.backend, r.size, w, c) for r in results for w, c in r.sql]
-    if sql:
-        print()
-        print("SQL statements hestore sent on its driver cursor, per operation (counted through")
-        print("store.session.traced in separate, untimed passes; an executemany counts once, its rows are not seen;")
-        print("TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE/ROLLBACK):")
-        print_table(["backend", "mesh", "what", "statements"], [[b, f"{s:,}", w, c] for b, s, w, c in sql], "lrll")
-    for s in skipped:
-        print(f"SKIPPED {s}")
-    print()
-    print("In-transaction timings exclude writing: hestore writes a transaction's changes at commit (or before a")
-    print("read); the many-edit figure includes them. The commit target (≤ 2 ms) is SPEC's for SQLite WAL; it is")
-    print("applied to PostgreSQL as well. The floor is 12 single-row UPDATEs in engine.begin() on the same database.")
-    print(f"Peak RSS of the whole run: {maxrss() / 2**20:.0f} MiB")
-    if figures:
-        print_markdown(figures)
+        sizes, rows = growth_rows(results)
+        rep.table("Growth with the mesh (median at each size; ratio = largest size / smallest size):",
+                  ["backend", "figure"] + [f"{s:,}" for s in sizes] + ["ratio"], rows, "ll" + "r" * (len(sizes) + 1))
+    rep.table("SQL statements hestore sent on its driver cursor, per operation (counted through\n"
+              "store.session.traced in separate, untimed passes; an executemany counts once, its rows are not seen;\n"
+              "TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE/ROLLBACK):", ["backend", "mesh", "what", "statements"],
+              [[r.backend, f"{r.size:,}", w, c] for r in results for w, c in r.sql], "lrll")
+    for r in results:
+        rep.notes += [f"{r.backend} {r.size:,}: {n}" for n in r.notes]
+        rep.problems += [f"{r.backend} {r.size:,}: {p}" for p in r.problems]
+    rep.close(ABOUT, rss="Peak RSS of the whole run")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

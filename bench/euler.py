@@ -84,51 +84,30 @@ With ``--profile over`` (the default) an operator over its target is run once
 more under cProfile (the profiler on during the timed calls only) and its top
 functions are printed; a subdivision over its target is profiled on a fresh
 copy of the small grid.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
 
 import cProfile
-import contextlib
-import os
 import random
-import shutil
-import sys
-import tempfile
 import time
 from collections import Counter
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import hestore
 
-import hestore  # noqa: E402
-from _common import (  # noqa: E402
-    child_main,
-    Figure,
-    fmt_time,
-    gc_paused,
-    grid_arrays,
-    import_mesh,
-    maxrss,
-    median,
-    open_backend,
-    parse_cells,
-    Parser,
-    pc,
-    percentile,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_profiles,
-    print_table,
-    profile_report,
-    Runner,
-    selected_backends,
-    settle,
-    Statements,
-    url_of,
-    vacuum_analyze,
-    verdict,
-)
+from harness.bench import Bench
+from harness.cli import Parser, at_least, cells, wants_profile
+from harness.databases import open_store, settle, url_of, vacuum
+from harness.profiling import Statements, profile_report, traced
+from harness.stats import median
+from harness.tables import Figure, fmt_time, verdict
+from harness.timing import gc_paused, maxrss, pc
+from workloads import Rollback, grid_arrays, grid_counts, import_mesh, triangles_label
 
 QUICK = {"n": 60, "small": "20x25", "repeat": 40, "warmup": 5, "block": 20, "profile": "off"}
 TARGET_OP = 1e-3  # seconds, median of one operator inside a transaction
@@ -158,10 +137,11 @@ CONTEXT_LABEL = "context: add_polygon([a, b, c]), boundary"
 CONTEXT_DELTA = (1, 2, 1)  # with its untimed add_vertex
 PREPS = (None, "split", "hole", "quad")
 SUBDIVISION = "1-to-4 subdivision"
-
-
-class _Rollback(Exception):
-    """Raised at the end of a measuring block to undo it."""
+ABOUT = """\
+Gates: every element passes its predicate first; every call succeeds (predicates answer True); each
+block's counts equal the stored ones plus each call's known change; rollbacks leave the mesh as
+stored; check() is empty after a block of each operator on the small grid and after each subdivision;
+the subdivided small grid has V + E vertices, 2E + 3F edges and 4F triangles."""
 
 
 # ==========================================================================
@@ -237,12 +217,12 @@ def job_setup(spec: dict) -> dict:
     nx, ny = spec["nx"], spec["ny"]
     t0 = time.perf_counter()
     problems = []
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         import_mesh(store, "grid", nx, "", grid=grid_arrays(nx, ny))
         mesh = store.mesh(MESH)
         seconds = time.perf_counter() - t0
         stored = mesh.counts()
-        expected = (nx * ny, (nx - 1) * ny + nx * (ny - 1) + (nx - 1) * (ny - 1), 2 * (nx - 1) * (ny - 1))
+        expected = grid_counts(nx, ny)
         if (stored.vertices, stored.edges, stored.polygons) != expected:
             problems.append(f"the stored grid has counts {stored}, not V, E, F = {expected}")
         rng = random.Random(spec["seed"])
@@ -276,7 +256,7 @@ def job_setup(spec: dict) -> dict:
         prep_seconds = time.perf_counter() - t1
         sites_out = {name: [[i, j, prepared[OPS[name][1]][(i, j)] if OPS[name][1] else None] for i, j in sites]
                      for name, sites in chosen.items()}
-    vacuum_analyze(spec)
+    vacuum(spec)
     return {"seconds": seconds, "prep_seconds": prep_seconds, "vertices": stored.vertices,
             "polygons": stored.polygons, "edges": stored.edges, "lattice": len(cells), "sites": sites_out,
             "shared": len(cells) < spec["need"] * len(OPS), "boundary": boundary_sites(nx, ny), "prepared": n,
@@ -379,9 +359,8 @@ def job_op(spec: dict) -> dict:
     def run_block(chunk: list, counter=None) -> None:
         nonlocal checked
         calls: Counter = Counter()
-        traced = store.session.traced(counter) if counter else contextlib.nullcontext()
         try:
-            with gc_paused(), traced, store.transaction():
+            with gc_paused(), traced(store, counter), store.transaction():
                 add_vertex()  # opens the block's unit of work (the mesh lock), untimed
                 for it in chunk:
                     if name == CONTEXT:
@@ -414,8 +393,8 @@ def job_op(spec: dict) -> dict:
                     bad = mesh.check()
                     if bad:
                         problems.append(f"{name}: check() after a block: {len(bad)} violation(s), e.g. {bad[:3]}")
-                raise _Rollback
-        except _Rollback:
+                raise Rollback
+        except Rollback:
             pass
         except hestore.HestoreError as exc:
             problems.append(f"{name}: a call raised {type(exc).__name__}: {exc}")
@@ -459,7 +438,7 @@ def job_subdivide(spec: dict) -> dict:
     store = hestore.open(url_of(spec))
     if spec.get("import"):
         import_mesh(store, "grid", nx, "", grid=grid_arrays(nx, ny))
-        vacuum_analyze(spec)
+        vacuum(spec)
     mesh = store.mesh(MESH)
     V, P = hestore.Vertex, hestore.Polygon
     problems = []
@@ -517,7 +496,7 @@ def job_subdivide(spec: dict) -> dict:
     settle(spec)
     profiler = cProfile.Profile() if spec.get("profile") else None
     c0 = time.process_time()
-    with gc_paused(), (store.session.traced(counter) if counter else contextlib.nullcontext()):
+    with gc_paused(), traced(store, counter):
         if profiler:
             profiler.enable()
         try:
@@ -585,137 +564,104 @@ JOBS = {"setup": job_setup, "ops": job_ops, "op": job_op, "subdivide": job_subdi
 # The parent
 
 
-def grid_label(nx: int, ny: int) -> str:
-    """A grid as the figures name it: its number of triangles."""
-    return f"{2 * (nx - 1) * (ny - 1):,}"
-
-
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, children=True, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)",
-                profile="profile hestore in a separate run when a figure is over target (default), always, or never")
-    ap.add_argument("--small", default="50x100",
+    ap = Parser(__doc__, quick=QUICK, grid=710, jobs=JOBS, profile=True, seed=20240601)
+    ap.add_argument("--small", type=cells, default="50x100",
                     help="cells of the small grid, WxH (default 50x100: 10,000 triangles; also the subdivision's "
                          "size, and that of its patch of the large grid)")
-    ap.add_argument("--repeat", type=int, default=200, help="timed calls per operator and grid (default 200)")
-    ap.add_argument("--warmup", type=int, default=20, help="untimed calls before them (default 20)")
-    ap.add_argument("--block", type=int, default=50, help="calls per rolled-back transaction (default 50)")
+    ap.add_argument("--repeat", type=at_least(1), default=200, help="timed calls per operator and grid (default 200)")
+    ap.add_argument("--warmup", type=at_least(0), default=20, help="untimed calls before them (default 20)")
+    ap.add_argument("--block", type=at_least(1), default=50, help="calls per rolled-back transaction (default 50)")
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    backends = selected_backends(ap, args)
-    try:
-        sw, sh = parse_cells(args.small)
-    except ValueError as exc:
-        ap.error(str(exc))
-    if args.repeat < 1 or args.warmup < 0 or args.block < 1:
-        ap.error("--repeat and --block must be at least 1, --warmup at least 0")
+    sw, sh = args.small
     if args.n - 1 < max(sw, sh) + 2 * SPACING + 2 * MARGIN:
         ap.error(f"--n {args.n} is too small for a {sw}x{sh} patch with sites around it")
 
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_euler_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
     grids = {"small": (sw + 1, sh + 1), "large": (args.n, args.n)}
     patches = {"small": [0, 0, sw, sh], "large": [(args.n - 1 - sw) // 2, (args.n - 1 - sh) // 2, sw, sh]}
-
     setups: dict = {}  # (backend, grid) -> result
     results: dict = {}  # (backend, grid, family) -> result
     subdivisions: dict = {}  # (backend, grid) -> result
-    profiles: list[tuple[str, str, str]] = []
-    skipped: list[str] = []
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
+    with Bench(args, "euler", __file__) as bench:
+        run = bench.runner.run
+        for place in bench.for_each_backend():
+            bname = place.backend
+            for grid in ("small", "large"):
+                nx, ny = grids[grid]
+                spec = dict(place.fresh(f"euler_{grid}"), nx=nx, ny=ny, seed=args.seed)
+                # The small grid's subdivision runs on a copy of its own; the large grid's on a patch kept free of
+                # sites, as the last step on that grid.
+                patch = patches[grid] if grid == "large" else None
+                setup = run(job="setup", patch=patch, need=args.repeat + args.warmup, what=f"{grid} grid {nx}×{ny}",
+                            **spec)
+                setups[(bname, grid)] = setup
+                if setup is None:
                     continue
-                pg_version = place.version or pg_version
-                for grid in ("small", "large"):
-                    nx, ny = grids[grid]
-                    spec = dict(place.fresh(f"euler_{grid}"), nx=nx, ny=ny, seed=args.seed)
-                    # The small grid's subdivision runs on a copy of its own; the large grid's on a patch kept
-                    # free of sites, as the last step on that grid.
-                    patch = patches[grid] if grid == "large" else None
-                    setup = runner.run(job="setup", patch=patch, need=args.repeat + args.warmup,
-                                       what=f"{grid} grid {nx}×{ny}", **spec)
-                    setups[(bname, grid)] = setup
-                    if setup is None:
-                        continue
-                    common = dict(spec, repeat=args.repeat, warmup=args.warmup, block=args.block,
-                                  boundary=setup["boundary"])
-                    ops = runner.run(job="ops", sites=setup["sites"], check=grid == "small",
-                                     what=f"every operator on the {grid} grid", **common) or {}
-                    for family, r in ops.items():
-                        results[(bname, grid, family)] = r
-                    profile_ops(args, runner, common, setup, bname, grid, results, profiles)
-                    if grid == "small":
-                        copy = dict(place.fresh("euler_subdivision"), nx=nx, ny=ny, seed=args.seed)
-                        copy["import"] = True
-                        subdivisions[(bname, grid)] = runner.run(job="subdivide", patch=patches[grid], whole=True,
-                                                                 what="subdivision of the small grid", **copy)
-                        place.drop(copy)
-                    else:
-                        subdivisions[(bname, grid)] = runner.run(job="subdivide", patch=patches[grid], whole=False,
-                                                                 what="subdivision of a patch of the large grid",
-                                                                 **spec)
-                    place.drop(spec)
-                profile_subdivision(args, runner, place, grids["small"], patches["small"], bname, subdivisions,
-                                    profiles)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-
-    problems = report(args, backends, grids, setups, results, subdivisions, profiles, skipped, runner.errors)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if problems else 0
+                common = dict(spec, repeat=args.repeat, warmup=args.warmup, block=args.block,
+                              boundary=setup["boundary"])
+                ops = run(job="ops", sites=setup["sites"], check=grid == "small",
+                          what=f"every operator on the {grid} grid", **common) or {}
+                for family, r in ops.items():
+                    results[(bname, grid, family)] = r
+                profile_ops(bench, common, setup, bname, grid, results)
+                if grid == "small":
+                    copy = dict(place.fresh("euler_subdivision"), nx=nx, ny=ny, seed=args.seed)
+                    copy["import"] = True
+                    subdivisions[(bname, grid)] = run(job="subdivide", patch=patches[grid], whole=True,
+                                                      what="subdivision of the small grid", **copy)
+                    place.drop(copy)
+                else:
+                    subdivisions[(bname, grid)] = run(job="subdivide", patch=patches[grid], whole=False,
+                                                      what="subdivision of a patch of the large grid", **spec)
+                place.drop(spec)
+            profile_subdivision(bench, place, grids["small"], patches["small"], subdivisions)
+    report(bench, grids, setups, results, subdivisions)
+    return bench.finish()
 
 
-def profile_ops(args, runner: Runner, common: dict, setup: dict, bname: str, grid: str, results: dict,
-                profiles: list) -> None:
+def profile_ops(bench: Bench, common: dict, setup: dict, bname: str, grid: str, results: dict) -> None:
     """Run each operator over its target (or every one, with ``--profile all``) once more under cProfile."""
-    if args.profile == "off":
+    if bench.args.profile == "off":
         return
-    label = grid_label(common["nx"], common["ny"])
+    label = triangles_label(common["nx"], common["ny"])
     for family in (CONTEXT, *OPS):
         r = results.get((bname, grid, family))
         if not r or not r["samples"]:
             continue
         t = median(r["samples"]) / 1e9
-        if args.profile == "all" or t > TARGET_OP:
-            prof = runner.run(job="op", family=family, sites=setup["sites"].get(family, []), check=False,
-                              profile=True, what=f"{family} on the {grid} grid", **common)
+        if wants_profile(bench.args, t > TARGET_OP):
+            prof = bench.runner.run(job="op", family=family, sites=setup["sites"].get(family, []), check=False,
+                                    profile=True, what=f"{family} on the {grid} grid", **common)
             if prof and prof.get("profile"):
                 text, dominant = prof["profile"]
-                profiles.append((f"{bname}, {label} triangles: {family} under cProfile (median {fmt_time(t)} "
-                                 f"without the profiler; {len(prof['samples'])} calls profiled)", dominant, text))
+                bench.report.profiles.append((f"{bname}, {label} triangles: {family} under cProfile (median "
+                                              f"{fmt_time(t)} without the profiler; {len(prof['samples'])} calls "
+                                              "profiled)", dominant, text))
 
 
-def profile_subdivision(args, runner: Runner, place, dims: tuple[int, int], patch: list[int], bname: str,
-                        subdivisions: dict, profiles: list) -> None:
+def profile_subdivision(bench: Bench, place, dims: tuple[int, int], patch: list[int], subdivisions: dict) -> None:
     """A subdivision over its target (on either grid), or every one with ``--profile all``: once more under
     cProfile, on a fresh copy of the small grid."""
+    args, bname = bench.args, place.backend
     if args.profile == "off":
         return
     over = [grid for (b, grid), r in subdivisions.items()
             if b == bname and r and r["ops"] and r["total"] / r["ops"] > TARGET_AMORTISED]
-    if not over and args.profile != "all":
+    if not wants_profile(args, bool(over)):
         return
     copy = dict(place.fresh("euler_subdivision_profile"), nx=dims[0], ny=dims[1], seed=args.seed)
     copy["import"] = True
-    prof = runner.run(job="subdivide", patch=patch, whole=True, profile=True,
-                      what="subdivision of the small grid", **copy)
+    prof = bench.runner.run(job="subdivide", patch=patch, whole=True, profile=True,
+                            what="subdivision of the small grid", **copy)
     place.drop(copy)
     if prof and prof.get("profile"):
         text, dominant = prof["profile"]
         why = f"over target on the {' and '.join(over)} grid" if over else "--profile all"
         counted = "; ".join(f"{phase}: " + ", ".join(f"{k} {c:.3g}" for k, c in sorted(kinds.items()))
                             for phase, kinds in prof.get("statements", {}).items())
-        profiles.append((f"{bname}: {SUBDIVISION} of the small grid under cProfile ({prof['total']:.2f} s with the "
-                         f"profiler on; {why}). Statements sent per call ({counted})", dominant, text))
+        bench.report.profiles.append((f"{bname}: {SUBDIVISION} of the small grid under cProfile ({prof['total']:.2f} "
+                                      f"s with the profiler on; {why}). Statements sent per call ({counted})",
+                                      dominant, text))
 
 
 # ==========================================================================
@@ -738,10 +684,10 @@ def op_figures(results: dict, backends, grids: dict) -> list[Figure]:
                 if not r or not r["samples"]:
                     continue
                 t = median(r["samples"]) / 1e9
-                out.append(Figure(_label(family), bname, t, None if family == CONTEXT else floor,
-                                  f"≤ {fmt_time(TARGET_OP)}", verdict(t <= TARGET_OP), grid_label(nx, ny),
-                                  n=len(r["samples"]), p90=percentile(r["samples"], 0.9) / 1e9,
-                                  cpu=median(r["cpu"]) / 1e9, rss=r["rss"]))
+                out.append(Figure.of_calls(_label(family), bname, r["samples"],
+                                           floor=None if family == CONTEXT else floor,
+                                           target=f"≤ {fmt_time(TARGET_OP)}", verdict=verdict(t <= TARGET_OP),
+                                           mesh=triangles_label(nx, ny), cpu=median(r["cpu"]) / 1e9, rss=r["rss"]))
     return out
 
 
@@ -752,7 +698,7 @@ def subdivision_figures(subdivisions: dict, backends, grids: dict) -> list[Figur
             r = subdivisions.get((bname, grid))
             if not r or not r["ops"] or not r["total"]:
                 continue
-            label = grid_label(nx, ny)
+            label = triangles_label(nx, ny)
             what = "whole grid" if grid == "small" else "a patch"
             per = r["total"] / r["ops"]
             out.append(Figure(f"{SUBDIVISION} of {r['triangles']:,} triangles ({what}), 1 txn incl. COMMIT",
@@ -768,59 +714,15 @@ def subdivision_figures(subdivisions: dict, backends, grids: dict) -> list[Figur
     return out
 
 
-def report(args, backends, grids, setups, results, subdivisions, profiles, skipped, errors) -> list[str]:
-    problems = list(errors)
-    notes: list[str] = []
-    for (bname, grid), s in setups.items():
-        if not s:
-            continue
-        nx, ny = grids[grid]
-        problems.extend(f"{bname} {grid} grid: {p}" for p in s["problems"])
-        shared = s["shared"]
-        notes.append(f"{bname} {grid_label(nx, ny)} ({nx}×{ny} vertices): stored in {s['seconds']:.1f} s, "
-                     f"sites prepared in {s['prep_seconds']:.1f} s ({s['prepared']['split']} degree-2 vertices, "
-                     f"{s['prepared']['hole']} holes, {s['prepared']['quad']} quads); lattice of {s['lattice']:,} "
-                     f"sites, {'shared by the operators of one preparation' if shared else 'disjoint per operator'}")
-    reused: dict = {}
-    for (bname, grid, _family), r in results.items():
-        if r is None:
-            continue
-        problems.extend(f"{bname} {grid} grid: {p}" for p in r["problems"])
-        if r.get("elements") is not None and r["elements"] < args.repeat + args.warmup:
-            reused.setdefault((bname, grid), []).append(r["elements"])
-    for (bname, grid), counts in reused.items():
-        notes.append(f"{bname} {grid_label(*grids[grid])}: {len(counts)} operator(s) had {min(counts)}–{max(counts)} "
-                     f"distinct elements for {args.warmup + args.repeat} calls (distinct within each block; later "
-                     "blocks, fresh transactions, use them again)")
-    for (bname, grid), r in subdivisions.items():
-        if r is None:
-            continue
-        problems.extend(f"{bname} {grid} grid, subdivision: {p}" for p in r["problems"])
-        b, a = r["before"], r["after"]
-        notes.append(f"{bname} {grid_label(*grids[grid])}: subdivision: V, E, F {b[0]:,}, {b[1]:,}, {b[2]:,} → "
-                     f"{a[0]:,}, {a[1]:,}, {a[2]:,}; {r['edges']:,} split_edge + {3 * r['triangles']:,} "
-                     f"split_polygon; plan read in {r['plan_seconds']:.1f} s (untimed); check() "
-                     f"{r['check_seconds']:.1f} s; peak RSS {r['rss'] / 2**20:,.0f} MiB after the job, "
-                     f"{r['rss_after_check'] / 2**20:,.0f} MiB after check()")
+def flat_row(bname: str, name: str, small: float | None, large: float | None) -> list[str]:
+    """One row of the flat-in-mesh-size table: the figure on each grid, the ratio and whether it is flat."""
+    ratio = large / small if None not in (small, large) else None
+    return [bname, name, fmt_time(small), fmt_time(large), "—" if ratio is None else f"{ratio:.2f}×",
+            "—" if ratio is None else ("flat" if ratio <= FLAT else "grows")]
 
-    figures = op_figures(results, backends, grids)
-    subs = subdivision_figures(subdivisions, backends, grids)
-    print()
-    print(f"hestore Euler-operator benchmark — seed {args.seed}, {args.repeat} timed calls per operator and grid "
-          f"(after {args.warmup} untimed), blocks of {args.block} calls, each block one rolled-back transaction")
-    print()
-    print("Operators inside an open transaction (time: the median call; p90; its CPU: the median call's CPU time in")
-    print("the measuring process, without the database server's; mesh: triangles of the grid; floor: the median")
-    print("add_polygon of the same grid and backend, measured in the same run — the edit SPEC §9 gives the same")
-    print("target — for context; target = SPEC §9; timings exclude writing, done at commit):")
-    if figures:
-        print_figures(figures)
-    if subs:
-        print()
-        print(f"Whole-mesh job: {SUBDIVISION}, one transaction through the public API, commit included (time: one")
-        print("run; amortised = total ÷ operators; the target is the 1,000-edit transaction's, applied):")
-        print_figures(subs)
 
+def flat_rows(backends, results: dict, subdivisions: dict) -> list[list[str]]:
+    """Every operator's median, and the subdivision per operator, on the small grid beside the large one."""
     rows = []
     for bname in backends:
         for family in (CONTEXT, *OPS):
@@ -828,54 +730,76 @@ def report(args, backends, grids, setups, results, subdivisions, profiles, skipp
             for grid in ("small", "large"):
                 r = results.get((bname, grid, family))
                 vals.append(median(r["samples"]) / 1e9 if r and r["samples"] else None)
-            ratio = vals[1] / vals[0] if None not in vals else None
-            rows.append([bname, _label(family), fmt_time(vals[0]), fmt_time(vals[1]),
-                         "—" if ratio is None else f"{ratio:.2f}×",
-                         "—" if ratio is None else ("flat" if ratio <= FLAT else "grows")])
-        for grid_pair in [("small", "large")]:
-            vals = []
-            for grid in grid_pair:
-                r = subdivisions.get((bname, grid))
-                vals.append(r["total"] / r["ops"] if r and r["ops"] and r["total"] else None)
-            ratio = vals[1] / vals[0] if None not in vals else None
-            rows.append([bname, f"{SUBDIVISION}, per operator", fmt_time(vals[0]), fmt_time(vals[1]),
-                         "—" if ratio is None else f"{ratio:.2f}×",
-                         "—" if ratio is None else ("flat" if ratio <= FLAT else "grows")])
-    if results:
-        small, large = (grid_label(*grids[g]) for g in ("small", "large"))
-        print()
-        print(f"Flat in mesh size: the median on each grid side by side (ratio = {large} ÷ {small} triangles; "
-              f"flat: ≤ {FLAT:g}×, applied):")
-        print_table(["backend", "figure", small, large, "ratio", "verdict"], rows, "llrrrl")
+            rows.append(flat_row(bname, _label(family), *vals))
+        vals = []
+        for grid in ("small", "large"):
+            r = subdivisions.get((bname, grid))
+            vals.append(r["total"] / r["ops"] if r and r["ops"] and r["total"] else None)
+        rows.append(flat_row(bname, f"{SUBDIVISION}, per operator", *vals))
+    return rows
 
-    srows = []
-    for (bname, grid, family), r in results.items():
-        if r and r.get("statements") and grid == "large":
-            parts = [f"{k} {r['statements'][k]:.3g}" for k in Statements.KINDS if r["statements"].get(k)]
-            srows.append([bname, _label(family), f"{sum(r['statements'].values()):.3g}: " + ", ".join(parts)])
-    if srows:
-        print()
-        print(f"SQL statements hestore sent on its driver cursor during one call, on the large grid ({COUNTED} calls "
-              "counted in an untimed block through store.session.traced; the writes come at the flush):")
-        print_table(["backend", "figure", "statements per call"], srows, "lll")
-    print_profiles("Profiles (cProfile on during the calls only):", profiles)
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  Gates: every element passes its predicate first; every call succeeds (predicates answer True); each")
-    print("  block's counts equal the stored ones plus each call's known change; rollbacks leave the mesh as")
-    print("  stored; check() is empty after a block of each operator on the small grid and after each subdivision;")
-    print("  the subdivided small grid has V + E vertices, 2E + 3F edges and 4F triangles.")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
-    print(f"  Peak RSS of the parent: {maxrss() / 2**20:.0f} MiB")
-    if figures or subs:
-        print_markdown(figures + subs)
-    return problems
+
+def gates(bench: Bench, grids: dict, setups: dict, results: dict, subdivisions: dict) -> None:
+    """The steps' problems (their gates failed), and the notes on the grids, the sites and the subdivisions."""
+    args, rep = bench.args, bench.report
+    for (bname, grid), s in setups.items():
+        if not s:
+            continue
+        nx, ny = grids[grid]
+        rep.problems.extend(f"{bname} {grid} grid: {p}" for p in s["problems"])
+        shared = "shared by the operators of one preparation" if s["shared"] else "disjoint per operator"
+        rep.notes.append(f"{bname} {triangles_label(nx, ny)} ({nx}×{ny} vertices): stored in {s['seconds']:.1f} s, "
+                         f"sites prepared in {s['prep_seconds']:.1f} s ({s['prepared']['split']} degree-2 vertices, "
+                         f"{s['prepared']['hole']} holes, {s['prepared']['quad']} quads); lattice of {s['lattice']:,} "
+                         f"sites, {shared}")
+    reused: dict = {}
+    for (bname, grid, _family), r in results.items():
+        if r is None:
+            continue
+        rep.problems.extend(f"{bname} {grid} grid: {p}" for p in r["problems"])
+        if r.get("elements") is not None and r["elements"] < args.repeat + args.warmup:
+            reused.setdefault((bname, grid), []).append(r["elements"])
+    for (bname, grid), counts in reused.items():
+        rep.notes.append(f"{bname} {triangles_label(*grids[grid])}: {len(counts)} operator(s) had "
+                         f"{min(counts)}–{max(counts)} distinct elements for {args.warmup + args.repeat} calls "
+                         "(distinct within each block; later blocks, fresh transactions, use them again)")
+    for (bname, grid), r in subdivisions.items():
+        if r is None:
+            continue
+        rep.problems.extend(f"{bname} {grid} grid, subdivision: {p}" for p in r["problems"])
+        b, a = r["before"], r["after"]
+        rep.notes.append(f"{bname} {triangles_label(*grids[grid])}: subdivision: V, E, F {b[0]:,}, {b[1]:,}, "
+                         f"{b[2]:,} → {a[0]:,}, {a[1]:,}, {a[2]:,}; {r['edges']:,} split_edge + "
+                         f"{3 * r['triangles']:,} split_polygon; plan read in {r['plan_seconds']:.1f} s (untimed); "
+                         f"check() {r['check_seconds']:.1f} s; peak RSS {r['rss'] / 2**20:,.0f} MiB after the job, "
+                         f"{r['rss_after_check'] / 2**20:,.0f} MiB after check()")
+
+
+def report(bench: Bench, grids: dict, setups: dict, results: dict, subdivisions: dict) -> None:
+    args, rep = bench.args, bench.report
+    gates(bench, grids, setups, results, subdivisions)
+    rep.title(f"hestore Euler-operator benchmark — seed {args.seed}, {args.repeat} timed calls per operator and grid "
+              f"(after {args.warmup} untimed), blocks of {args.block} calls, each block one rolled-back transaction")
+    rep.figures(op_figures(results, args.backends, grids), caption="""\
+Operators inside an open transaction (time: the median call; p90; its CPU: the median call's CPU time in
+the measuring process, without the database server's; mesh: triangles of the grid; floor: the median
+add_polygon of the same grid and backend, measured in the same run — the edit SPEC §9 gives the same
+target — for context; target = SPEC §9; timings exclude writing, done at commit):""")
+    rep.figures(subdivision_figures(subdivisions, args.backends, grids), caption=f"""\
+Whole-mesh job: {SUBDIVISION}, one transaction through the public API, commit included (time: one
+run; amortised = total ÷ operators; the target is the 1,000-edit transaction's, applied):""")
+    if results:
+        small, large = (triangles_label(*grids[g]) for g in ("small", "large"))
+        rep.table(f"Flat in mesh size: the median on each grid side by side (ratio = {large} ÷ {small} triangles; "
+                  f"flat: ≤ {FLAT:g}×, applied):", ["backend", "figure", small, large, "ratio", "verdict"],
+                  flat_rows(args.backends, results, subdivisions), "llrrrl")
+    srows = [[bname, _label(family), Statements.per(r["statements"], unit="")]
+             for (bname, grid, family), r in results.items() if r and r.get("statements") and grid == "large"]
+    rep.table(f"SQL statements hestore sent on its driver cursor during one call, on the large grid ({COUNTED} calls "
+              "counted in an untimed block through store.session.traced; the writes come at the flush):",
+              ["backend", "figure", "statements per call"], srows, "lll")
+    rep.close(ABOUT, profiles="Profiles (cProfile on during the calls only):", rss="Peak RSS of the parent")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -78,6 +78,11 @@ with networkx's component count; check() is empty; every local answer
 agrees with networkx's on the floor's graph (the path joins ``a`` to ``b``
 along edges of the mesh, with as many edges, or the same total length within
 1e-9 relative; the k-ring is the same set).
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
@@ -86,47 +91,24 @@ import contextlib
 import gc
 import hashlib
 import os
-import shutil
-import sys
-import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import islice
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import networkx as nx
+import numpy as np
 
-import networkx as nx  # noqa: E402
-import numpy as np  # noqa: E402
+import hestore
 
-import hestore  # noqa: E402
-from _common import (  # noqa: E402
-    Figure,
-    Parser,
-    Runner,
-    child_main,
-    fmt_mib,
-    fmt_time,
-    gc_paused,
-    import_mesh,
-    maxrss,
-    mesh_label,
-    open_backend,
-    pg_copy_columns,
-    plain_connection,
-    plain_mesh_id,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_table,
-    selected_backends,
-    selected_meshes,
-    settle,
-    time_each,
-    timed,
-    url_of,
-    vacuum_analyze,
-    verdict,
-)
+from floors import pg_copy_columns
+from harness.bench import Bench
+from harness.cli import Parser, wants_profile
+from harness.databases import open_store, plain_connection, plain_mesh_id, settle, url_of, vacuum
+from harness.runner import one_shot
+from harness.stats import finished
+from harness.tables import Figure, fmt_mib, fmt_time, verdict
+from harness.timing import gc_paused, maxrss, time_each, timed
+from workloads import MESHES, counts_text, import_mesh, mesh_label, present
 
 QUICK = {"n": 100, "only": "grid", "profile": "off"}
 PARTS = ("views", "summaries", "local")
@@ -134,7 +116,7 @@ TARGET_RATIO = 1.3  # to_networkx("multigraph") ÷ floor
 TARGET_SECONDS = 10.0  # stats(), check() (and, applied here, boundary_loops(), components())
 TARGET_CACHE = 0.010  # a second to_networkx(): "about 0"
 CACHE_CALLS = 20  # repeated calls after the second one; their median is the cache figure
-KEEP: list = []  # a child's graphs: left to the process's exit (see `_common.child_main`)
+KEEP: list = []  # a child's graphs: left to the process's exit (see `harness.runner.child_main`)
 KINDS = ("multigraph", "graph")
 SUMMARIES = ("stats", "boundary_loops", "components", "check")
 #: Whether each kind's nodes carry ``pos`` (SPEC §6 names it for the multigraph; hestore's "graph" has it too).
@@ -149,6 +131,13 @@ LOCAL_RUNS = 5  # fresh processes (pairs) per local figure; the median is the fi
 WARM_CALLS = 20  # the same call again in that process: the warm median, a note
 PATH_EDGES = 10  # how far apart a path's two vertices are, in edges
 RING = 3
+ABOUT = """\
+The floors add the same nodes with the same `pos` attribute as hestore's graphs (an (x, y, z) tuple per
+vertex), then the (u, v, key) edges ("graph": the unique pairs); the edges-only and same-graph
+(hestore's edge attributes too) variants are printed above. Builds are timed with the garbage collector
+paused, as hestore builds (the multigraph floor also with it on). Peak RSS is the child process's own
+ru_maxrss (the PostgreSQL server is not included); it holds the whole graph, which networkx keeps as
+dicts. The cached calls are timed one by one with the garbage collector paused."""
 
 
 # ==========================================================================
@@ -316,11 +305,11 @@ def floor_graph(a: Arrays, variant: str):
 def job_setup(spec: dict) -> dict:
     """Store the mesh (untimed setup); on PostgreSQL then VACUUM (ANALYZE), as autovacuum soon would."""
     t0 = time.perf_counter()
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         report = import_mesh(store, spec["mesh"], spec["n"], spec["dir"])
         counts = report.mesh.counts()
     seconds = time.perf_counter() - t0
-    vacuum_analyze(spec)
+    vacuum(spec)
     return {"seconds": seconds, "skipped": len(report.skipped),
             "counts": [counts.vertices, counts.halfedges, counts.edges, counts.polygons]}
 
@@ -488,22 +477,16 @@ def verify_graph(kind: str, g, a: Arrays) -> list[str]:
 
 def job_to_networkx(spec: dict) -> dict:
     kind = spec["kind"]
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         mesh = store.mesh(spec["mesh"])
-        settle(spec)
-        rss0 = maxrss()
-        run = timed(lambda: mesh.to_networkx(kind), profile=spec.get("profile", False))
-        g = run.result
-        rss = maxrss()
+        g, out = one_shot(spec, lambda: mesh.to_networkx(kind), profile=spec.get("profile", False))
         # The cache: the second call, then CACHE_CALLS more (their median is the figure).
         calls, again, _ = time_each(lambda _: mesh.to_networkx(kind), range(1 + CACHE_CALLS))
         same_object = all(x is g for x in again)
         del again
         cached = [c / 1e9 for c in calls[1:]]
-        out = {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "second_call": calls[0] / 1e9,
-               "cached": float(np.median(cached)), "cached_max": max(cached), "same_object": same_object,
-               "profile": run.profile, "dominant": run.dominant, "nodes": g.number_of_nodes(),
-               "graph_edges": g.number_of_edges()}
+        out.update(second_call=calls[0] / 1e9, cached=float(np.median(cached)), cached_max=max(cached),
+                   same_object=same_object, nodes=g.number_of_nodes(), graph_edges=g.number_of_edges())
     if not spec.get("profile"):
         out["mismatch"] = verify_graph(kind, g, Arrays.load(spec["arrays"]))
     KEEP.extend((store, g))  # freed by the process's exit, not timed, not waited for
@@ -525,15 +508,9 @@ def _summary_result(what: str, result) -> dict:
 
 def job_summary(spec: dict) -> dict:
     what = spec["what"]
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
-        mesh = store.mesh(spec["mesh"])
-        settle(spec)
-        rss0 = maxrss()
-        run = timed(getattr(mesh, what), profile=spec.get("profile", False))
-        rss = maxrss()
-        out = {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "profile": run.profile,
-               "dominant": run.dominant}
-        out.update(_summary_result(what, run.result))
+    with open_store(spec) as store:
+        result, out = one_shot(spec, getattr(store.mesh(spec["mesh"]), what), profile=spec.get("profile", False))
+        out.update(_summary_result(what, result))
     return out
 
 
@@ -590,7 +567,7 @@ def job_local_floor(spec: dict) -> dict:
 def job_local(spec: dict) -> dict:
     """One local query, cold: the first call in this process on a freshly opened store; then warm calls."""
     pair, query = spec["pair"], spec["query"]
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         mesh = store.mesh(spec["mesh"])
         a, b = hestore.Vertex(mesh, pair["a"]), hestore.Vertex(mesh, pair["b"])
         if query == "k_ring(v, 3)":
@@ -602,12 +579,10 @@ def job_local(spec: dict) -> dict:
             def call():
                 return [v.id for v in mesh.shortest_path(a, b, weight)]
 
-        settle(spec)
-        run = timed(call, profile=spec.get("profile", False))
+        answer, out = one_shot(spec, call, profile=spec.get("profile", False))
         calls, _, _ = time_each(lambda _: call(), range(WARM_CALLS))
-    problems = path_problems(Arrays.load(spec["arrays"]), pair, query, run.result)  # after the timing
-    return {"seconds": run.seconds, "cpu": run.cpu, "problems": problems, "warm": float(np.median(calls)) / 1e9,
-            "profile": run.profile, "dominant": run.dominant}
+    problems = path_problems(Arrays.load(spec["arrays"]), pair, query, answer)  # after the timing
+    return dict(out, problems=problems, warm=float(np.median(calls)) / 1e9)
 
 
 def current_rss() -> int:
@@ -693,8 +668,19 @@ def floor_of(kind: str, variant: str, fetch: dict | None, build: dict | None) ->
     return total + build["seconds"], " + ".join(parts)
 
 
+@dataclass
+class Results:
+    """What the steps of a run gave back, filled as they finish (a failed step leaves None)."""
+
+    setups: dict = field(default_factory=dict)  # (backend, mesh) -> result
+    fetches: dict = field(default_factory=dict)  # (backend, mesh) -> result
+    builds: dict = field(default_factory=dict)  # (mesh, kind, variant), (mesh, "local"|"memory") -> result
+    figures: dict = field(default_factory=dict)  # (backend, mesh, figure) -> result (list of results: local)
+    arrays: dict = field(default_factory=dict)  # mesh -> path of the saved floor arrays
+
+
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=True, children=True,
+    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=MESHES, jobs=JOBS,
                 workdir_help="where SQLite files and arrays go (default: a temporary folder, removed at the end)",
                 profile="rerun a figure under cProfile when it is over its target (default), always, or never")
     ap.add_argument("--parts", default=",".join(PARTS),
@@ -702,126 +688,100 @@ def main(argv=None) -> int:
                          "queries and to_networkx's memory) (default all)")
     ap.add_argument("--seed", type=int, default=1, help="random seed of the local queries' pairs (default 1)")
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    parts = [p.strip() for p in args.parts.split(",") if p.strip()]
-    for p in parts:
-        if p not in PARTS:
-            ap.error(f"unknown part {p!r} (choose from {', '.join(PARTS)})")
+    parts = ap.names(args.parts, PARTS, "part")
+    only, missing = present(args.only, args.meshes_dir)
 
-    backends = selected_backends(ap, args)
-    only, skipped = selected_meshes(ap, args)
-
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_graph_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
-    base = {"n": args.n, "dir": args.meshes_dir}
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
-
-    setups: dict = {}  # (backend, mesh) -> result
-    fetches: dict = {}  # (backend, mesh) -> result
-    builds: dict = {}  # (mesh, kind, variant) -> result
-    results: dict = {}  # (backend, mesh, figure) -> result
-    profiles: list[tuple[str, dict]] = []
-    arrays: dict = {}  # mesh -> path of the saved floor arrays
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
-                    continue
-                pg_version = place.version or pg_version
-                for m in only:
-                    spec = dict(base, mesh=m, **place.fresh(f"graph_{m}"))
-                    setups[(bname, m)] = setup = runner.run(job="setup", **spec)
-                    if setup is None:
-                        continue
-                    first = m not in arrays
-                    if first:
-                        arrays[m] = os.path.join(workdir, f"arrays-{m}.npz")
-                    fetches[(bname, m)] = runner.run(job="fetch", save=arrays[m] if first else None, **spec)
-                    if fetches[(bname, m)] is None and first:
-                        del arrays[m]
-                        continue
-                    spec["arrays"] = arrays[m]
-                    if "local" in parts:
-                        run_local(runner, spec, first, bname, m, args, builds, results, profiles)
-                    for kind in KINDS if "views" in parts else ():
-                        if first:  # the builds do not depend on the backend: once per mesh
-                            form = None
-                            for variant in FLOOR_VARIANTS[kind]:
-                                r = runner.run(job="build", kind=kind, variant=variant, form=form,
-                                               **dict(spec, backend=None))
-                                builds[(m, kind, variant)] = r
-                                if r and variant == "edges" and kind == "multigraph":
-                                    form = r["form"]
-                        results[(bname, m, kind)] = runner.run(job="to_networkx", kind=kind, **spec)
-                    for what in SUMMARIES if "summaries" in parts else ():
-                        results[(bname, m, what)] = runner.run(job="summary", what=what, **spec)
-                    # Profiles of whatever is over its target.
-                    for key in [*KINDS, *SUMMARIES]:
-                        r = results.get((bname, m, key))
-                        if not r:
-                            continue
-                        if key in KINDS:
-                            fl = floor_of(key, FLOOR_OF[key], fetches.get((bname, m)),
-                                          builds.get((m, key, FLOOR_OF[key])))
-                            over = key == "multigraph" and fl is not None and r["seconds"] > TARGET_RATIO * fl[0]
-                        else:
-                            over = r["seconds"] > TARGET_SECONDS
-                        if args.profile == "all" or (args.profile == "over" and over):
-                            job = "to_networkx" if key in KINDS else "summary"
-                            extra = {"kind": key} if key in KINDS else {"what": key}
-                            p = runner.run(job=job, profile=True, **extra, **spec)
-                            if p:
-                                profiles.append((f"{bname} {mesh_label(m, args.n)}: {figure_name(key)} under cProfile "
-                                                 f"({p['seconds']:.2f} s with the profiler on, "
-                                                 f"{r['seconds']:.2f} s without)", p))
-                    place.drop(spec)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-        else:
-            for name in os.listdir(workdir):
-                if name.startswith(("graph_", "arrays-", "result-")):
-                    with contextlib.suppress(OSError):
-                        os.remove(os.path.join(workdir, name))
-
-    problems = report(args, only, backends, setups, fetches, builds, results, profiles, skipped, runner.errors,
-                      pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if problems else 0
+    found = Results()
+    with Bench(args, "graph", __file__, clean=("graph_", "arrays-", "result-")) as bench:
+        bench.report.skipped.extend(missing)
+        for place in bench.for_each_backend():
+            for m in only:
+                spec = dict(n=args.n, dir=args.meshes_dir, mesh=m, **place.fresh(f"graph_{m}"))
+                run_mesh(bench, spec, parts, found)
+                place.drop(spec)
+    report(bench, only, found)
+    return bench.finish(meshes=args.meshes_dir, libraries=f"networkx {nx.__version__}")
 
 
-def run_local(runner, spec, first, bname, m, args, builds, results, profiles) -> None:
-    """The local queries' floor (once per mesh), each query cold in LOCAL_RUNS fresh processes, and the memory."""
+def run_mesh(bench: Bench, spec: dict, parts: list[str], found: Results) -> None:
+    """Every step of one mesh on one backend: its setup, the fetch floor, then the parts asked for."""
+    run, bname, m = bench.runner.run, spec["backend"], spec["mesh"]
+    found.setups[(bname, m)] = setup = run(job="setup", **spec)
+    if setup is None:
+        return
+    first = m not in found.arrays
     if first:
-        builds[(m, "local")] = runner.run(job="local_floor", seed=args.seed, **dict(spec, backend=None))
-        builds[(m, "memory")] = runner.run(job="memory", variant="bare", **dict(spec, backend=None))
-    floor = builds.get((m, "local"))
+        found.arrays[m] = os.path.join(bench.workdir, f"arrays-{m}.npz")
+    found.fetches[(bname, m)] = run(job="fetch", save=found.arrays[m] if first else None, **spec)
+    if found.fetches[(bname, m)] is None and first:
+        del found.arrays[m]
+        return
+    spec["arrays"] = found.arrays[m]
+    if "local" in parts:
+        run_local(bench, spec, first, found)
+    for kind in KINDS if "views" in parts else ():
+        if first:  # the builds do not depend on the backend: once per mesh
+            form = None
+            for variant in FLOOR_VARIANTS[kind]:
+                r = run(job="build", kind=kind, variant=variant, form=form, **dict(spec, backend=None))
+                found.builds[(m, kind, variant)] = r
+                if r and variant == "edges" and kind == "multigraph":
+                    form = r["form"]
+        found.figures[(bname, m, kind)] = run(job="to_networkx", kind=kind, **spec)
+    for what in SUMMARIES if "summaries" in parts else ():
+        found.figures[(bname, m, what)] = run(job="summary", what=what, **spec)
+    # Profiles of whatever is over its target.
+    for key in [*KINDS, *SUMMARIES]:
+        r = found.figures.get((bname, m, key))
+        if not r:
+            continue
+        if key in KINDS:
+            fl = floor_of(key, FLOOR_OF[key], found.fetches.get((bname, m)), found.builds.get((m, key, FLOOR_OF[key])))
+            over = key == "multigraph" and fl is not None and r["seconds"] > TARGET_RATIO * fl[0]
+        else:
+            over = r["seconds"] > TARGET_SECONDS
+        if wants_profile(bench.args, over):
+            job, extra = ("to_networkx", {"kind": key}) if key in KINDS else ("summary", {"what": key})
+            p = run(job=job, profile=True, **extra, **spec)
+            if p:
+                bench.report.profiles.append((f"{bname} {mesh_label(m, bench.args.n)}: {figure_name(key)} under "
+                                              f"cProfile ({p['seconds']:.2f} s with the profiler on, "
+                                              f"{r['seconds']:.2f} s without)", p["dominant"], p["profile"]))
+
+
+def run_local(bench: Bench, spec: dict, first: bool, found: Results) -> None:
+    """The local queries' floor (once per mesh), each query cold in LOCAL_RUNS fresh processes, and the memory."""
+    run, bname, m, args = bench.runner.run, spec["backend"], spec["mesh"], bench.args
+    if first:
+        found.builds[(m, "local")] = run(job="local_floor", seed=args.seed, **dict(spec, backend=None))
+        found.builds[(m, "memory")] = run(job="memory", variant="bare", **dict(spec, backend=None))
+    floor = found.builds.get((m, "local"))
     if not floor:
         return
     for query, target in LOCAL.items():
-        runs = [runner.run(job="local", query=query, pair=pair, **spec) for pair in floor["pairs"]]
-        results[(bname, m, query)] = runs
+        runs = [run(job="local", query=query, pair=pair, **spec) for pair in floor["pairs"]]
+        found.figures[(bname, m, query)] = runs
         slow = [r for r in runs if r and r["seconds"] > target]
-        if args.profile == "all" or (args.profile == "over" and slow):
+        if wants_profile(args, bool(slow)):
             pair = floor["pairs"][runs.index(slow[0]) if slow else 0]
-            p = runner.run(job="local", query=query, pair=pair, profile=True, **spec)
+            p = run(job="local", query=query, pair=pair, profile=True, **spec)
             if p:
-                profiles.append((f"{bname} {mesh_label(m, args.n)}: {query} under cProfile "
-                                 f"({p['seconds'] * 1e3:.2f} ms with the profiler on)", p))
-    results[(bname, m, "memory")] = runner.run(job="memory", variant="to_networkx", **spec)
+                bench.report.profiles.append((f"{bname} {mesh_label(m, args.n)}: {query} under cProfile "
+                                              f"({p['seconds'] * 1e3:.2f} ms with the profiler on)", p["dominant"],
+                                              p["profile"]))
+    found.figures[(bname, m, "memory")] = run(job="memory", variant="to_networkx", **spec)
 
 
-def local_report(bname, m, label, fetch, builds, results, figures, notes, problems) -> None:
-    floor = builds.get((m, "local"))
+def local_figures(bench: Bench, bname: str, m: str, fetch: dict | None, found: Results) -> list[Figure]:
+    """The local queries' figures of one mesh on one backend, their notes and gates, and the memory note."""
+    rep, label = bench.report, mesh_label(m, bench.args.n)
+    floor = found.builds.get((m, "local"))
     if not floor:
-        return
+        return []
+    figures = []
     fe = fetch_best(fetch, "edges")[0] + fetch_best(fetch, "vertices")[0] if fetch else None
     for query, target in LOCAL.items():
-        runs = [r for r in results.get((bname, m, query)) or [] if r]
+        runs = finished(found.figures, (bname, m, query))
         if not runs:
             continue
         cold = sorted(r["seconds"] for r in runs)
@@ -833,135 +793,98 @@ def local_report(bname, m, label, fetch, builds, results, figures, notes, proble
         figures.append(Figure(f"{query}, cold", bname, median_cold, total, f"≤ {target * 1e3:g} ms",
                               verdict(median_cold <= target), label, n=len(runs),
                               cpu=float(np.median([r["cpu"] for r in runs])), floor_parts=parts))
-        notes.append(f"{bname} {label}: {query}: cold {', '.join(fmt_time(c) for c in cold)} ({len(runs)} fresh "
-                     f"processes, the median is the figure); warm (the same call again, median of {WARM_CALLS}) "
-                     f"{fmt_time(float(np.median([r['warm'] for r in runs])))}; networkx on its prebuilt graph "
-                     f"{fmt_time(q)}")
-        for pair, r in zip(floor["pairs"], results.get((bname, m, query)) or []):
+        rep.notes.append(f"{bname} {label}: {query}: cold {', '.join(fmt_time(c) for c in cold)} ({len(runs)} fresh "
+                         f"processes, the median is the figure); warm (the same call again, median of {WARM_CALLS}) "
+                         f"{fmt_time(float(np.median([r['warm'] for r in runs])))}; networkx on its prebuilt graph "
+                         f"{fmt_time(q)}")
+        for pair, r in zip(floor["pairs"], found.figures.get((bname, m, query)) or []):
             if r:
-                problems += [f"{bname} {label}: {query} from {pair['a']} to {pair['b']}: {x}" for x in r["problems"]]
-    mem, bare = results.get((bname, m, "memory")), builds.get((m, "memory"))
+                rep.problems += [f"{bname} {label}: {query} from {pair['a']} to {pair['b']}: {x}"
+                                 for x in r["problems"]]
+    mem, bare = found.figures.get((bname, m, "memory")), found.builds.get((m, "memory"))
     if mem and bare:
-        notes.append(f"{bname} {label}: MEMORY to_networkx(\"multigraph\") holds {fmt_mib(mem['held'])} (RSS after "
-                     f"− before; peak RSS {fmt_mib(mem['peak'])}); floor: the bare nx.MultiGraph().add_edges_from("
-                     f"(u, v, key)) {fmt_mib(bare['held'])} (peak {fmt_mib(bare['peak'])}): "
-                     f"{mem['held'] / bare['held']:.2f}× (no SPEC target)")
+        rep.notes.append(f"{bname} {label}: MEMORY to_networkx(\"multigraph\") holds {fmt_mib(mem['held'])} (RSS "
+                         f"after − before; peak RSS {fmt_mib(mem['peak'])}); floor: the bare nx.MultiGraph()."
+                         f"add_edges_from((u, v, key)) {fmt_mib(bare['held'])} (peak {fmt_mib(bare['peak'])}): "
+                         f"{mem['held'] / bare['held']:.2f}× (no SPEC target)")
+    return figures
 
 
 def figure_name(key: str) -> str:
     return f'to_networkx("{key}")' if key in KINDS else f"{key}()"
 
 
-def report(args, only, backends, setups, fetches, builds, results, profiles, skipped, errors, pg_version,
-           load_start, elapsed) -> list[str]:
-    problems = list(errors)
-    figures: list[Figure] = []
-    notes: list[str] = []
-    variant_rows: list[list[str]] = []
-    digests: dict = {}
-    zeros: dict = {}
-    for bname in backends:
-        for m in only:
-            setup = setups.get((bname, m))
-            if not setup:
+def view_figures(bench: Bench, bname: str, m: str, fetch: dict | None, found: Results,
+                 variant_rows: list) -> list[Figure]:
+    """The to_networkx figures of one mesh on one backend (first call, then cached), their gates and notes, and
+    a row per floor variant."""
+    rep, label = bench.report, mesh_label(m, bench.args.n)
+    figures = []
+    for kind in KINDS:
+        r = found.figures.get((bname, m, kind))
+        if not r:
+            continue
+        fl = floor_of(kind, FLOOR_OF[kind], fetch, found.builds.get((m, kind, FLOOR_OF[kind])))
+        ok, target = None, "— (none in SPEC)"
+        if kind == "multigraph":
+            target = "≤ 1.3× floor"
+            if fl:
+                ok = r["seconds"] <= TARGET_RATIO * fl[0]
+        figures.append(Figure(f'to_networkx("{kind}")', bname, r["seconds"], fl[0] if fl else None, target,
+                              verdict(ok), label, cpu=r["cpu"], rss=r["rss"], floor_parts=fl[1] if fl else "missing"))
+        figures.append(Figure(f'to_networkx("{kind}") again (cache)', bname, r["cached"], None,
+                              "≈ 0 (≤ 10 ms), same object", verdict(r["cached"] <= TARGET_CACHE and r["same_object"]),
+                              label, n=CACHE_CALLS))
+        rep.notes.append(f"{bname} {label}: to_networkx(\"{kind}\") cached: the second call "
+                         f"{fmt_time(r['second_call'])}; {CACHE_CALLS} more: median {fmt_time(r['cached'])} "
+                         f"(the figure), slowest {fmt_time(r['cached_max'])}")
+        if not r["same_object"]:
+            rep.problems.append(f"{bname} {label}: a second to_networkx(\"{kind}\") returned another object")
+        if r.get("mismatch"):
+            rep.problems.append(f"{bname} {label}: to_networkx(\"{kind}\") differs from the floor's graph in "
+                                f"{'; '.join(r['mismatch'])}")
+        rep.notes.append(f"{bname} {label}: to_networkx(\"{kind}\") {r['nodes']:,} nodes, "
+                         f"{r['graph_edges']:,} edges; RSS {fmt_mib(r['rss_before'])} before the call, "
+                         f"{fmt_mib(r['rss'])} after")
+        for variant in FLOOR_VARIANTS[kind]:
+            b = found.builds.get((m, kind, variant))
+            f = floor_of(kind, variant, fetch, b)
+            if not f:
                 continue
-            label = mesh_label(m, args.n)
-            V, H, E, P = setup["counts"]
-            notes.append(f"{bname} {label}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
-                         f"V/H/E/P {V:,}/{H:,}/{E:,}/{P:,}"
-                         + (f", {setup['skipped']} polygons skipped" if setup["skipped"] else ""))
-            fetch = fetches.get((bname, m))
-            if fetch:
-                digests.setdefault(m, {})[bname] = fetch["digest"]
-                zeros.setdefault(m, {})[bname] = fetch["negative_zeros"]
-                if fetch["edges"] != E or fetch["vertices"] != V:
-                    problems.append(f"{bname} {label}: the floor fetched {fetch['edges']:,} edges / "
-                                    f"{fetch['vertices']:,} vertices, counts() says {E:,} / {V:,}")
-            # -- the graph views
-            for kind in KINDS:
-                r = results.get((bname, m, kind))
-                if not r:
-                    continue
-                fl = floor_of(kind, FLOOR_OF[kind], fetch, builds.get((m, kind, FLOOR_OF[kind])))
-                ok, target = None, "— (none in SPEC)"
-                if kind == "multigraph":
-                    target = "≤ 1.3× floor"
-                    if fl:
-                        ok = r["seconds"] <= TARGET_RATIO * fl[0]
-                figures.append(Figure(f'to_networkx("{kind}")', bname, r["seconds"], fl[0] if fl else None, target,
-                                      verdict(ok), label, cpu=r["cpu"], rss=r["rss"],
-                                      floor_parts=fl[1] if fl else "missing"))
-                figures.append(Figure(f'to_networkx("{kind}") again (cache)', bname, r["cached"], None,
-                                      "≈ 0 (≤ 10 ms), same object",
-                                      verdict(r["cached"] <= TARGET_CACHE and r["same_object"]), label,
-                                      n=CACHE_CALLS))
-                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") cached: the second call "
-                             f"{fmt_time(r['second_call'])}; {CACHE_CALLS} more: median {fmt_time(r['cached'])} "
-                             f"(the figure), slowest {fmt_time(r['cached_max'])}")
-                if not r["same_object"]:
-                    problems.append(f"{bname} {label}: a second to_networkx(\"{kind}\") returned another object")
-                if r.get("mismatch"):
-                    problems.append(f"{bname} {label}: to_networkx(\"{kind}\") differs from the floor's graph in "
-                                    f"{'; '.join(r['mismatch'])}")
-                notes.append(f"{bname} {label}: to_networkx(\"{kind}\") {r['nodes']:,} nodes, "
-                             f"{r['graph_edges']:,} edges; RSS {fmt_mib(r['rss_before'])} before the call, "
-                             f"{fmt_mib(r['rss'])} after")
-                for variant in FLOOR_VARIANTS[kind]:
-                    b = builds.get((m, kind, variant))
-                    f = floor_of(kind, variant, fetch, b)
-                    if not f:
-                        continue
-                    runs = ", ".join(f"{k} {v:.2f} s" for k, v in b["runs"].items())
-                    variant_rows.append([bname, label, kind,
-                                         variant + (" ← floor" if variant == FLOOR_OF[kind] else ""),
-                                         fmt_time(f[0]), f"build {runs}", fmt_mib(b["rss"]),
-                                         f"{r['seconds'] / f[0]:.2f}×"])
-            # -- the summaries
-            ctx = builds.get((m, "graph", "nodes"))
-            for what in SUMMARIES:
-                r = results.get((bname, m, what))
-                if not r:
-                    continue
-                floor, parts = None, ""
-                if what == "components" and ctx and fetch and "ncc" in ctx:
-                    fe, fv = fetch_best(fetch, "edges")[0], fetch_best(fetch, "vertices")[0]
-                    floor = fe + fv + ctx["seconds"] + ctx["ncc_seconds"]
-                    parts = (f"context: fetch {fe + fv:.2f} + nx.Graph {ctx['seconds']:.2f} + "
-                             f"number_connected_components {ctx['ncc_seconds']:.2f}")
-                applied = "" if what in ("stats", "check") else " (applied)"
-                figures.append(Figure(f"{what}()", bname, r["seconds"], floor, f"≤ 10 s{applied}",
-                                      verdict(r["seconds"] <= TARGET_SECONDS), label, cpu=r["cpu"], rss=r["rss"],
-                                      floor_parts=parts))
-            if any(results.get((bname, m, w)) for w in SUMMARIES):
-                problems += summary_problems(bname, m, label, args.n, setup, fetch, ctx,
-                                             {w: results.get((bname, m, w)) for w in SUMMARIES}, notes)
-            local_report(bname, m, label, fetch, builds, results, figures, notes, problems)
-    for m, d in digests.items():
-        if len(set(d.values())) > 1:
-            problems.append(f"{mesh_label(m, args.n)}: the backends store different edge arrays or positions")
-        elif len(d) > 1:
-            notes.append(f"{mesh_label(m, args.n)}: both backends store the same edges, half-edges, polygons and "
-                         "positions")
-        if len(set(zeros[m].values())) > 1:
-            notes.append(f"{mesh_label(m, args.n)}: -0.0 coordinates stored: "
-                         + ", ".join(f"{b} {z}" for b, z in zeros[m].items())
-                         + " (SQLite stores -0.0 as 0.0; compared as numbers they are equal)")
+            runs = ", ".join(f"{k} {v:.2f} s" for k, v in b["runs"].items())
+            variant_rows.append([bname, label, kind, variant + (" ← floor" if variant == FLOOR_OF[kind] else ""),
+                                 fmt_time(f[0]), f"build {runs}", fmt_mib(b["rss"]), f"{r['seconds'] / f[0]:.2f}×"])
+    return figures
 
-    # -- the figures
-    print()
-    print("hestore graph views and summaries benchmark — every figure one run in a fresh process")
-    print()
-    print_figures(figures)
-    print("(time: wall clock; its CPU: user + system time of the measuring process alone, without the database")
-    print(" server's, a hint of how much other load on the machine slowed the wall clock down)")
 
-    print()
-    print("Graph floors, every variant (fetch of this backend + build, the build once per mesh in its own process;")
-    print("the ratio is hestore's first to_networkx call ÷ that variant):")
-    print_table(["backend", "mesh", "kind", "variant", "floor", "its build", "build's peak RSS", "hestore ÷"],
-                variant_rows, "lllllllr")
-    print()
-    print("Fetch variants (one plain-driver query each, in its own read snapshot, one run each; the fastest is used):")
+def summary_figures(bench: Bench, bname: str, m: str, fetch: dict | None, found: Results) -> list[Figure]:
+    """The four summaries' figures of one mesh on one backend, and their cross-checks."""
+    label = mesh_label(m, bench.args.n)
+    ctx = found.builds.get((m, "graph", "nodes"))
+    figures = []
+    for what in SUMMARIES:
+        r = found.figures.get((bname, m, what))
+        if not r:
+            continue
+        floor, parts = None, ""
+        if what == "components" and ctx and fetch and "ncc" in ctx:
+            fe, fv = fetch_best(fetch, "edges")[0], fetch_best(fetch, "vertices")[0]
+            floor = fe + fv + ctx["seconds"] + ctx["ncc_seconds"]
+            parts = (f"context: fetch {fe + fv:.2f} + nx.Graph {ctx['seconds']:.2f} + "
+                     f"number_connected_components {ctx['ncc_seconds']:.2f}")
+        applied = "" if what in ("stats", "check") else " (applied)"
+        figures.append(Figure(f"{what}()", bname, r["seconds"], floor, f"≤ 10 s{applied}",
+                              verdict(r["seconds"] <= TARGET_SECONDS), label, cpu=r["cpu"], rss=r["rss"],
+                              floor_parts=parts))
+    if figures:
+        bench.report.problems += summary_problems(bname, m, label, bench.args.n, found.setups[(bname, m)], fetch,
+                                                  ctx, {w: found.figures.get((bname, m, w)) for w in SUMMARIES},
+                                                  bench.report.notes)
+    return figures
+
+
+def fetch_rows(n: int, fetches: dict) -> list[list[str]]:
+    """Every fetch variant of every backend and mesh, the one used marked."""
     rows = []
     for (bname, m), fetch in fetches.items():
         if not fetch:
@@ -969,33 +892,59 @@ def report(args, only, backends, setups, fetches, builds, results, profiles, ski
         for q, t in fetch["times"].items():
             best = min(t, key=t.get)
             for name, s in t.items():
-                rows.append([bname, mesh_label(m, args.n), q, name, fmt_time(s), "← used" if name == best else ""])
-    print_table(["backend", "mesh", "query", "variant", "time", ""], rows, "llllrl")
+                rows.append([bname, mesh_label(m, n), q, name, fmt_time(s), "← used" if name == best else ""])
+    return rows
 
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  The floors add the same nodes with the same `pos` attribute as hestore's graphs (an (x, y, z) tuple per")
-    print("  vertex), then the (u, v, key) edges (\"graph\": the unique pairs); the edges-only and same-graph")
-    print("  (hestore's edge attributes too) variants are printed above. Builds are timed with the garbage collector")
-    print("  paused, as hestore builds (the multigraph floor also with it on). Peak RSS is the child process's own")
-    print("  ru_maxrss (the PostgreSQL server is not included); it holds the whole graph, which networkx keeps as")
-    print("  dicts. The cached calls are timed one by one with the garbage collector paused.")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
 
-    for title, p in profiles:
-        print()
-        print(title)
-        print(f"dominant (most own time): {p['dominant']}")
-        print(p["profile"].rstrip())
+def report(bench: Bench, only: list[str], found: Results) -> None:
+    args, rep = bench.args, bench.report
+    figures: list[Figure] = []
+    variant_rows: list[list[str]] = []
+    digests: dict = {}
+    zeros: dict = {}
+    for bname in args.backends:
+        for m in only:
+            setup = found.setups.get((bname, m))
+            if not setup:
+                continue
+            label = mesh_label(m, args.n)
+            V, H, E, P = setup["counts"]
+            rep.notes.append(f"{bname} {label}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
+                             f"{counts_text(setup['counts'])}"
+                             + (f", {setup['skipped']} polygons skipped" if setup["skipped"] else ""))
+            fetch = found.fetches.get((bname, m))
+            if fetch:
+                digests.setdefault(m, {})[bname] = fetch["digest"]
+                zeros.setdefault(m, {})[bname] = fetch["negative_zeros"]
+                if fetch["edges"] != E or fetch["vertices"] != V:
+                    rep.problems.append(f"{bname} {label}: the floor fetched {fetch['edges']:,} edges / "
+                                        f"{fetch['vertices']:,} vertices, counts() says {E:,} / {V:,}")
+            figures += view_figures(bench, bname, m, fetch, found, variant_rows)
+            figures += summary_figures(bench, bname, m, fetch, found)
+            figures += local_figures(bench, bname, m, fetch, found)
+    for m, d in digests.items():
+        if len(set(d.values())) > 1:
+            rep.problems.append(f"{mesh_label(m, args.n)}: the backends store different edge arrays or positions")
+        elif len(d) > 1:
+            rep.notes.append(f"{mesh_label(m, args.n)}: both backends store the same edges, half-edges, polygons and "
+                             "positions")
+        if len(set(zeros[m].values())) > 1:
+            rep.notes.append(f"{mesh_label(m, args.n)}: -0.0 coordinates stored: "
+                             + ", ".join(f"{b} {z}" for b, z in zeros[m].items())
+                             + " (SQLite stores -0.0 as 0.0; compared as numbers they are equal)")
 
-    print_markdown(figures)
-    print_machine(pg_version, load_start, elapsed, meshes=args.meshes_dir, libraries=f"networkx {nx.__version__}")
-    return problems
+    rep.title("hestore graph views and summaries benchmark — every figure one run in a fresh process")
+    rep.figures(figures, after="""\
+(time: wall clock; its CPU: user + system time of the measuring process alone, without the database
+ server's, a hint of how much other load on the machine slowed the wall clock down)""")
+    rep.table("Graph floors, every variant (fetch of this backend + build, the build once per mesh in its own "
+              "process;\nthe ratio is hestore's first to_networkx call ÷ that variant):",
+              ["backend", "mesh", "kind", "variant", "floor", "its build", "build's peak RSS", "hestore ÷"],
+              variant_rows, "lllllllr")
+    rep.table("Fetch variants (one plain-driver query each, in its own read snapshot, one run each; the fastest is "
+              "used):", ["backend", "mesh", "query", "variant", "time", ""], fetch_rows(args.n, found.fetches),
+              "llllrl")
+    rep.close(ABOUT, profiles="Profiles of the figures over their target, each rerun under cProfile:")
 
 
 def summary_problems(bname, m, label, n, setup, fetch, ctx, r, notes) -> list[str]:
@@ -1044,4 +993,4 @@ def summary_problems(bname, m, label, n, setup, fetch, ctx, r, notes) -> list[st
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

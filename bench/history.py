@@ -94,57 +94,35 @@ more under cProfile (the profiler on during the timed calls only): the top
 functions of the mesh with history are printed, and the functions whose time
 grows most from the history=False mesh's profile; ``--profile all``
 profiles every 1-polygon variant, the undo and the import.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
 
-import cProfile
 import contextlib
+import cProfile
 import os
 import pstats
 import random
-import shutil
-import sys
-import tempfile
 import time
 from functools import partial
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import hestore
+from hestore import schema
 
-import hestore  # noqa: E402
-from hestore import schema  # noqa: E402
-from _common import (  # noqa: E402
-    child_main,
-    Figure,
-    fmt_time,
-    gc_paused,
-    grid_arrays,
-    maxrss,
-    median,
-    open_backend,
-    parse_cells,
-    Parser,
-    pc,
-    percentile,
-    pg_connect,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_profiles,
-    print_table,
-    profile_report,
-    Runner,
-    selected_backends,
-    settle,
-    share_one_cpu,
-    Statements,
-    time_each,
-    timed,
-    timed_check,
-    url_of,
-    vacuum_analyze,
-    verdict,
-)
+from harness.bench import Bench
+from harness.cli import Parser, at_least, cells, wants_profile
+from harness.databases import open_store, pg_connect, settle, share_one_cpu, vacuum
+from harness.profiling import Statements, profile_report
+from harness.runner import one_shot
+from harness.stats import fastest, median, percentile
+from harness.tables import Figure, fmt_time, verdict
+from harness.timing import gc_paused, maxrss, pc, time_each, timed
+from workloads import Rollback, counts_text, grid_arrays, grid_counts, timed_check, triangles_label
 
 QUICK = {"n": 30, "small": "12x12", "edits": 40, "recent": 5, "repeat": 10, "warmup": 3, "reads": 10,
          "view_runs": 2, "import_runs": 1, "profile": "off"}
@@ -158,15 +136,17 @@ VARIANTS = {
 }
 #: Change of (vertices, edges, polygons) per transaction of each variant.
 DELTA = {"free": (0, 3, 1), "boundary": (1, 2, 1)}
+ABOUT = """\
+Gates: stored counts are the grid's; one revision per edit transaction with history, none kept without
+(history() empty, at(1) and undo() refused); every read through a view equals the model of the grid with
+the edits up to r, every read of the current mesh the model with all of them; at(r).counts() equals
+counts(); the 1-polygon transactions change the counts by their known amount and at(r) before them gives
+the old counts; after undo() the counts and every touched vertex's position and neighbours are as before,
+diff() of the two revisions is empty; check() is empty; each import keeps one revision (none without)."""
 
 
 def mesh_name(grid: str, history: bool) -> str:
     return f"{grid}_{'h' if history else 'n'}"
-
-
-def grid_label(nx: int, ny: int) -> str:
-    """A grid as the figures name it: its number of triangles."""
-    return f"{2 * (nx - 1) * (ny - 1):,}"
 
 
 # ==========================================================================
@@ -302,8 +282,7 @@ def open_grid(spec: dict, grid: str, out: dict | None = None):
     ``out["placement"]`` says whether it could.
     """
     with contextlib.ExitStack() as stack:
-        urls = {flag: url_of(spec["dbs"][mesh_name(grid, flag)]) for flag in (True, False)}
-        stores = {flag: stack.enter_context(contextlib.closing(hestore.open(url))) for flag, url in urls.items()}
+        stores = {flag: stack.enter_context(open_store(spec["dbs"][mesh_name(grid, flag)])) for flag in (True, False)}
         placement = share_one_cpu(spec) if out is not None else None
         if placement:
             out["placement"] = placement
@@ -317,7 +296,7 @@ def job_setup(spec: dict) -> dict:
         with open_grid(spec, grid) as stores:
             nx, ny = spec["dims"][grid]
             positions, faces = grid_arrays(nx, ny)
-            want = (nx * ny, (nx - 1) * ny + nx * (ny - 1) + (nx - 1) * (ny - 1), 2 * (nx - 1) * (ny - 1))
+            want = grid_counts(nx, ny)
             for flag in (True, False):
                 t0 = time.perf_counter()
                 mesh = stores[flag].import_arrays(mesh_name(grid, flag), positions, faces, history=flag).mesh
@@ -328,7 +307,7 @@ def job_setup(spec: dict) -> dict:
                 if mesh.revision != 1:
                     problems.append(f"{mesh.name}: at revision {mesh.revision} after its import, not 1")
         for flag in (True, False):
-            vacuum_analyze(spec["dbs"][mesh_name(grid, flag)])
+            vacuum(spec["dbs"][mesh_name(grid, flag)])
     return {"seconds": seconds, "problems": problems, "rss": maxrss()}
 
 
@@ -622,10 +601,6 @@ def job_undo(spec: dict) -> dict:
     return out
 
 
-class _Rollback(Exception):
-    """Raised at the end of a warm-up block to undo it."""
-
-
 def many_edits(store, mesh, plan: list[str], flips: list, moved: list[int], sites: list, ny: int,
                commit: bool = True) -> None:
     """One transaction of the undo step's edits, in turn: set_position, flip_edge, a triangle on the top row
@@ -645,8 +620,8 @@ def many_edits(store, mesh, plan: list[str], flips: list, moved: list[int], site
                     mesh.add_polygon([a, b, c])
                     chain.advance(c)
             if not commit:
-                raise _Rollback
-    except _Rollback:
+                raise Rollback
+    except Rollback:
         pass
 
 
@@ -662,26 +637,18 @@ def job_import(spec: dict) -> dict:
     """``import_arrays`` of the large grid into a fresh database, with or without history."""
     nx, ny = spec["dims"]["large"]
     positions, faces = grid_arrays(nx, ny)  # the arrays a user already has
-    store = hestore.open(url_of(spec))
-    settle(spec)
-    rss0 = maxrss()
-    run = timed(lambda: store.import_arrays("grid", positions, faces, history=spec["history"]),
-                profile=spec.get("profile", False))
-    rss = maxrss()
-    mesh = run.result.mesh
-    c = mesh.counts()
-    kept = len(mesh.history())
-    store.close()
+    with open_store(spec) as store:
+        report, out = one_shot(spec, lambda: store.import_arrays("grid", positions, faces, history=spec["history"]),
+                               profile=spec.get("profile", False))
+        c = report.mesh.counts()
+        kept = len(report.mesh.history())
     problems = []
-    want = (nx * ny, (nx - 1) * ny + nx * (ny - 1) + (nx - 1) * (ny - 1), 2 * (nx - 1) * (ny - 1))
+    want = grid_counts(nx, ny)
     if (c.vertices, c.edges, c.polygons) != want:
         problems.append(f"import: counts {c}, not V, E, F = {want}")
     if kept != (1 if spec["history"] else 0):
         problems.append(f"import with history={spec['history']}: {kept} revision(s) kept")
-    out = {"seconds": run.seconds, "cpu": run.cpu, "rss": rss, "rss_before": rss0, "problems": problems}
-    if run.profile:
-        out["profile"] = (run.profile, run.dominant)
-    return out
+    return dict(out, problems=problems)
 
 
 def profile_difference(with_history: cProfile.Profile, without: cProfile.Profile, calls: int, top: int = 8) -> str:
@@ -708,104 +675,104 @@ JOBS = {"setup": job_setup, "edits": job_edits, "views": job_views, "txn1": job_
 
 
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, children=True, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)",
-                profile="profile hestore in a separate run when a figure is over target (default), always, or never")
-    ap.add_argument("--small", default="50x100",
+    ap = Parser(__doc__, quick=QUICK, grid=710, jobs=JOBS, profile=True, seed=20240601)
+    ap.add_argument("--small", type=cells, default="50x100",
                     help="cells of the small grid, WxH (default 50x100: 10,000 triangles)")
     ap.add_argument("--edits", type=int, default=1000,
                     help="edit transactions before the views, and edits in the transaction undone (default 1000)")
-    ap.add_argument("--recent", type=int, default=10, help="the other view: this many edits back (default 10)")
-    ap.add_argument("--repeat", type=int, default=200, help="timed 1-polygon transactions per variant (default 200)")
-    ap.add_argument("--warmup", type=int, default=20, help="untimed ones before them (default 20)")
-    ap.add_argument("--reads", type=int, default=100, help="vertices read through each view (default 100)")
-    ap.add_argument("--view-runs", type=int, default=5, help="counts() of each view and of the mesh (default 5)")
+    ap.add_argument("--recent", type=at_least(1), default=10, help="the other view: this many edits back (default 10)")
+    ap.add_argument("--repeat", type=at_least(1), default=200,
+                    help="timed 1-polygon transactions per variant (default 200)")
+    ap.add_argument("--warmup", type=at_least(0), default=20, help="untimed ones before them (default 20)")
+    ap.add_argument("--reads", type=at_least(1), default=100, help="vertices read through each view (default 100)")
+    ap.add_argument("--view-runs", type=at_least(1), default=5,
+                    help="counts() of each view and of the mesh (default 5)")
     ap.add_argument("--view-budget", type=float, default=30,
                     help="seconds a timed loop of reads through a view may take: a slower read is timed on fewer "
                          "vertices, at least 3 (default 30)")
-    ap.add_argument("--import-runs", type=int, default=2,
+    ap.add_argument("--import-runs", type=at_least(1), default=2,
                     help="imports with and without history, each a fresh process (default 2 of each)")
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    backends = selected_backends(ap, args)
-    try:
-        sw, sh = parse_cells(args.small)
-    except ValueError as exc:
-        ap.error(str(exc))
+    sw, sh = args.small
     dims = {"small": (sw + 1, sh + 1), "large": (args.n, args.n)}
-    if min(args.repeat, args.reads, args.view_runs, args.import_runs, args.recent) < 1 or args.warmup < 0:
-        ap.error("--repeat, --reads, --view-runs, --import-runs and --recent must be at least 1, --warmup at least 0")
     if not args.recent < args.edits <= min((nx - 1) * (ny - 1) for nx, ny in dims.values()):
         ap.error(f"--edits must be above --recent and at most the number of cells of the smaller grid ({sw * sh})")
 
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_history_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
-
     runs: dict = {}  # (backend, step) -> result
     imports: dict = {}  # (backend, history) -> [results]
-    profiles: list[tuple[str, str, str]] = []
-    skipped: list[str] = []
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
-                    continue
-                pg_version = place.version or pg_version
-                # Each mesh in a database of its own (see open_grid).
-                dbs = {mesh_name(grid, flag): place.fresh(f"history_{mesh_name(grid, flag)}")
-                       for grid in GRIDS for flag in (True, False)}
-                spec = dict(backend=bname, db_url=place.db_url, dbs=dbs, dims=dims, seed=args.seed)
-                setup = runs[(bname, "setup")] = runner.run(job="setup", what="store both grids twice", **spec)
-                if setup is not None:
-                    edits = runs[(bname, "edits")] = runner.run(
-                        job="edits", edits=args.edits, what=f"{args.edits} edit transactions per mesh", **spec)
-                    if edits is not None:
-                        runs[(bname, "views")] = runner.run(
-                            job="views", since=[args.recent, args.edits], reads=args.reads, repeat=args.repeat,
-                            budget=args.view_budget,
-                            view_runs=args.view_runs, cells={g: edits[g]["cells"] for g in GRIDS},
-                            revision={g: edits[g]["revision"] for g in GRIDS}, what="views at(r)", **spec)
-                    common = dict(spec, repeat=args.repeat, warmup=args.warmup)
-                    txn = runs[(bname, "txn1")] = runner.run(job="txn1", what="1-polygon transactions", **common)
-                    profile_txn1(args, runner, common, bname, txn, profiles)
-                    undo = runs[(bname, "undo")] = runner.run(
-                        job="undo", edits=args.edits, profile=args.profile == "all",
-                        what=f"{args.edits}-edit transaction and undo()", **spec)
-                    if undo is not None:
-                        for grid in GRIDS:
-                            if undo[grid].get("profile"):
-                                text, dominant, seconds = undo[grid]["profile"]
-                                profiles.append((f"{bname}, {grid_label(*dims[grid])} triangles: undo() of the "
-                                                 f"{args.edits}-edit transaction, made again, under cProfile "
-                                                 f"({seconds:.2f} s with the profiler on; --profile all)",
-                                                 dominant, text))
-                    runs[(bname, "check")] = runner.run(job="check", what="check() after undo()", **spec)
-                for db in dbs.values():
-                    place.drop(db)
-                for k in range(args.import_runs):
-                    for flag in (False, True) if k % 2 == 0 else (True, False):
-                        imp = place.fresh(f"import_{k}_{'h' if flag else 'n'}")
-                        imports.setdefault((bname, flag), []).append(runner.run(
-                            job="import", history=flag, dims=dims, what=f"import, history={flag}", **imp))
-                        place.drop(imp)
-                profile_import(args, runner, place, dims, bname, imports, profiles)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-
-    problems = report(args, backends, dims, runs, imports, profiles, skipped, runner.errors)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if problems else 0
+    with Bench(args, "history", __file__) as bench:
+        for place in bench.for_each_backend():
+            run_steps(bench, place, dims, runs)
+            run_imports(bench, place, dims, imports)
+    report(bench, dims, runs, imports)
+    return bench.finish()
 
 
-def profile_txn1(args, runner: Runner, common: dict, bname: str, txn: dict | None, profiles: list) -> None:
+def run_steps(bench: Bench, place, dims: dict, runs: dict) -> None:
+    """Every step on the four meshes of one backend, in order: setup, edits, views, 1-polygon transactions, the
+    big transaction and its undo, check()."""
+    args, run, bname = bench.args, bench.runner.run, place.backend
+    # Each mesh in a database of its own (see open_grid).
+    dbs = {mesh_name(grid, flag): place.fresh(f"history_{mesh_name(grid, flag)}")
+           for grid in GRIDS for flag in (True, False)}
+    spec = dict(backend=bname, db_url=place.db_url, dbs=dbs, dims=dims, seed=args.seed)
+    setup = runs[(bname, "setup")] = run(job="setup", what="store both grids twice", **spec)
+    if setup is not None:
+        edits = runs[(bname, "edits")] = run(job="edits", edits=args.edits,
+                                             what=f"{args.edits} edit transactions per mesh", **spec)
+        if edits is not None:
+            runs[(bname, "views")] = run(job="views", since=[args.recent, args.edits], reads=args.reads,
+                                         repeat=args.repeat, budget=args.view_budget, view_runs=args.view_runs,
+                                         cells={g: edits[g]["cells"] for g in GRIDS},
+                                         revision={g: edits[g]["revision"] for g in GRIDS}, what="views at(r)",
+                                         **spec)
+        common = dict(spec, repeat=args.repeat, warmup=args.warmup)
+        txn = runs[(bname, "txn1")] = run(job="txn1", what="1-polygon transactions", **common)
+        profile_txn1(bench, common, bname, txn)
+        undo = runs[(bname, "undo")] = run(job="undo", edits=args.edits, profile=args.profile == "all",
+                                           what=f"{args.edits}-edit transaction and undo()", **spec)
+        for grid in GRIDS if undo is not None else ():
+            if undo[grid].get("profile"):
+                text, dominant, seconds = undo[grid]["profile"]
+                bench.report.profiles.append((f"{bname}, {triangles_label(*dims[grid])} triangles: undo() of the "
+                                              f"{args.edits}-edit transaction, made again, under cProfile "
+                                              f"({seconds:.2f} s with the profiler on; --profile all)", dominant, text))
+        runs[(bname, "check")] = run(job="check", what="check() after undo()", **spec)
+    for db in dbs.values():
+        place.drop(db)
+
+
+def run_imports(bench: Bench, place, dims: dict, imports: dict) -> None:
+    """The imports of the large grid with and without history, alternating, each into a fresh database; the one
+    with history under cProfile when it is over its target."""
+    args, bname = bench.args, place.backend
+    for k in range(args.import_runs):
+        for flag in (False, True) if k % 2 == 0 else (True, False):
+            imp = place.fresh(f"import_{k}_{'h' if flag else 'n'}")
+            imports.setdefault((bname, flag), []).append(bench.runner.run(
+                job="import", history=flag, dims=dims, what=f"import, history={flag}", **imp))
+            place.drop(imp)
+    if args.profile == "off":
+        return
+    h, n = (fastest(imports.get((bname, flag))) for flag in (True, False))
+    if not h or not n:
+        return
+    ratio = h["seconds"] / n["seconds"]
+    if wants_profile(args, ratio > TARGET_IMPORT):
+        imp = place.fresh("import_profile")
+        prof = bench.runner.run(job="import", history=True, dims=dims, profile=True, what="import under cProfile",
+                                **imp)
+        place.drop(imp)
+        if prof and prof.get("profile"):
+            bench.report.profiles.append((f"{bname}, {triangles_label(*dims['large'])} triangles: import_arrays with "
+                                          f"history under cProfile ({prof['seconds']:.2f} s with the profiler on; "
+                                          f"{ratio:.2f}× the history=False floor without it)", prof["dominant"],
+                                          prof["profile"]))
+
+
+def profile_txn1(bench: Bench, common: dict, bname: str, txn: dict | None) -> None:
     """A 1-polygon variant over its target (or every one, with ``--profile all``): once more under cProfile."""
+    args = bench.args
     if args.profile == "off" or not txn:
         return
     for grid in GRIDS:
@@ -814,71 +781,48 @@ def profile_txn1(args, runner: Runner, common: dict, bname: str, txn: dict | Non
             if not r or not r["h"]:
                 continue
             ratio = median(r["h"]) / median(r["n"])
-            if args.profile == "all" or ratio > TARGET_TXN:
-                prof = runner.run(job="txn1", grids=[grid], variants=[variant], profile=True,
-                                  what=f"{variant} 1-polygon transactions on the {grid} grid", **common)
+            if wants_profile(args, ratio > TARGET_TXN):
+                prof = bench.runner.run(job="txn1", grids=[grid], variants=[variant], profile=True,
+                                        what=f"{variant} 1-polygon transactions on the {grid} grid", **common)
                 if prof and prof.get("profile"):
                     text, dominant = prof["profile"]
-                    label = grid_label(*common["dims"][grid])
-                    profiles.append((f"{bname}, {label} triangles: {VARIANTS[variant]} with history under cProfile "
-                                     f"({ratio:.2f}× the history=False floor without the profiler; "
-                                     f"{args.repeat} transactions of each mesh profiled, after {args.warmup}). "
-                                     f"Difference from history=False: {prof['difference']}", dominant, text))
-
-
-def profile_import(args, runner: Runner, place, dims: dict, bname: str, imports: dict, profiles: list) -> None:
-    """The import with history over its target (or always, with ``--profile all``): once more under cProfile."""
-    if args.profile == "off":
-        return
-    h, n = (_fastest(imports.get((bname, flag))) for flag in (True, False))
-    if not h or not n:
-        return
-    ratio = h["seconds"] / n["seconds"]
-    if args.profile == "all" or ratio > TARGET_IMPORT:
-        imp = place.fresh("import_profile")
-        prof = runner.run(job="import", history=True, dims=dims, profile=True, what="import under cProfile", **imp)
-        place.drop(imp)
-        if prof and prof.get("profile"):
-            text, dominant = prof["profile"]
-            profiles.append((f"{bname}, {grid_label(*dims['large'])} triangles: import_arrays with history under "
-                             f"cProfile ({prof['seconds']:.2f} s with the profiler on; {ratio:.2f}× the "
-                             "history=False floor without it)", dominant, text))
-
-
-def _fastest(results: list | None) -> dict | None:
-    done = [r for r in results or [] if r]
-    return min(done, key=lambda r: r["seconds"]) if done else None
+                    label = triangles_label(*common["dims"][grid])
+                    bench.report.profiles.append((
+                        f"{bname}, {label} triangles: {VARIANTS[variant]} with history under cProfile ({ratio:.2f}× "
+                        f"the history=False floor without the profiler; {args.repeat} transactions of each mesh "
+                        f"profiled, after {args.warmup}). Difference from history=False: {prof['difference']}",
+                        dominant, text))
 
 
 # ==========================================================================
 # Figures
 
 
-def journal_figures(args, backends, dims, runs, imports) -> list[Figure]:
+def _journal(name: str, bname: str, samples: dict, target: str, label: str, rss: int | None) -> Figure:
+    """A figure timed on both meshes call by call: the mesh with history beside the history=False floor."""
+    t, f = median(samples["h"]) / 1e9, median(samples["n"]) / 1e9
+    return Figure.of_calls(name, bname, samples["h"], floor=f, target=target, verdict=verdict(t <= TARGET_TXN * f),
+                           mesh=label, rss=rss, floor_parts=f"the same, history=False: median {fmt_time(f)}, "
+                                                            f"p90 {fmt_time(percentile(samples['n'], 0.9) / 1e9)}")
+
+
+def journal_figures(args, dims, runs, imports) -> list[Figure]:
     """History vs history=False: the 1-polygon transactions, the edit transactions, the big one, the import."""
     out = []
-    for bname in backends:
+    for bname in args.backends:
         txn = runs.get((bname, "txn1")) or {}
         edits = runs.get((bname, "edits")) or {}
         undo = runs.get((bname, "undo")) or {}
         for grid in ("large", "small"):
-            label = grid_label(*dims[grid])
+            label = triangles_label(*dims[grid])
             for variant, name in VARIANTS.items():
                 r = txn.get(f"{grid}/{variant}")
                 if r and r["h"]:
-                    t, f = median(r["h"]) / 1e9, median(r["n"]) / 1e9
-                    out.append(Figure(name, bname, t, f, f"≤ {TARGET_TXN:.2f}× floor", verdict(t <= TARGET_TXN * f),
-                                      label, n=len(r["h"]), p90=percentile(r["h"], 0.9) / 1e9, rss=txn.get("rss"),
-                                      floor_parts=f"the same, history=False: median {fmt_time(f)}, "
-                                                  f"p90 {fmt_time(percentile(r['n'], 0.9) / 1e9)}"))
+                    out.append(_journal(name, bname, r, f"≤ {TARGET_TXN:.2f}× floor", label, txn.get("rss")))
             r = edits.get(grid)
             if r and r["h"]:
-                t, f = median(r["h"]) / 1e9, median(r["n"]) / 1e9
-                out.append(Figure("edit txn: flip_edge + set_position", bname, t, f,
-                                  f"≤ {TARGET_TXN:.2f}× floor (applied)", verdict(t <= TARGET_TXN * f), label,
-                                  n=len(r["h"]), p90=percentile(r["h"], 0.9) / 1e9, rss=edits.get("rss"),
-                                  floor_parts=f"the same, history=False: median {fmt_time(f)}, "
-                                              f"p90 {fmt_time(percentile(r['n'], 0.9) / 1e9)}"))
+                out.append(_journal("edit txn: flip_edge + set_position", bname, r,
+                                    f"≤ {TARGET_TXN:.2f}× floor (applied)", label, edits.get("rss")))
             r = undo.get(grid)
             if r:
                 t, f = r["h"]["seconds"], r["n"]["seconds"]
@@ -886,7 +830,7 @@ def journal_figures(args, backends, dims, runs, imports) -> list[Figure]:
                                   f"≤ {TARGET_TXN:.2f}× floor (applied)", verdict(t <= TARGET_TXN * f), label,
                                   cpu=r["h"]["cpu"],
                                   floor_parts=f"the same, history=False: {f:.3f} (its CPU {r['n']['cpu']:.3f})"))
-        h, n = _fastest(imports.get((bname, True))), _fastest(imports.get((bname, False)))
+        h, n = fastest(imports.get((bname, True))), fastest(imports.get((bname, False)))
         if h:
             f = n["seconds"] if n else None
             parts = "missing"
@@ -895,7 +839,7 @@ def journal_figures(args, backends, dims, runs, imports) -> list[Figure]:
                 parts = f"import_arrays, history=False, fresh process and database: fastest of {runs_n}"
             out.append(Figure("import_arrays of the grid", bname, h["seconds"], f, f"≤ {TARGET_IMPORT:.2f}× floor",
                               verdict(None if f is None else h["seconds"] <= TARGET_IMPORT * f),
-                              grid_label(*dims["large"]), n=len([x for x in imports[(bname, True)] if x]),
+                              triangles_label(*dims["large"]), n=len([x for x in imports[(bname, True)] if x]),
                               cpu=h["cpu"], rss=h["rss"], floor_parts=parts))
     return out
 
@@ -908,12 +852,12 @@ VIEW_KINDS = {
 }
 
 
-def view_figures(args, backends, dims, runs) -> list[Figure]:
+def view_figures(args, dims, runs) -> list[Figure]:
     out = []
-    for bname in backends:
+    for bname in args.backends:
         views = runs.get((bname, "views")) or {}
         for grid in ("large", "small"):
-            label = grid_label(*dims[grid])
+            label = triangles_label(*dims[grid])
             for since in (args.recent, args.edits):
                 r = views.get(f"{grid}/{since}")
                 if not r:
@@ -924,16 +868,15 @@ def view_figures(args, backends, dims, runs) -> list[Figure]:
                     else:
                         s, fs, cpu = r[kind]["samples"], r[kind]["floor"], r[kind]["cpu"] / len(r[kind]["samples"])
                     f = median(fs) / 1e9
-                    p90 = percentile(s, 0.9) / 1e9 if len(s) >= 10 else None
-                    out.append(Figure(f"{name}, r = R − {since:,}", bname, median(s) / 1e9, f, "—", verdict(None),
-                                      label, n=len(s), p90=p90, cpu=cpu, rss=views.get("rss"),
-                                      floor_parts=f"{what}: median {fmt_time(f)} of {len(fs)}"))
+                    out.append(Figure.of_calls(f"{name}, r = R − {since:,}", bname, s, p90=len(s) >= 10, floor=f,
+                                               mesh=label, cpu=cpu, rss=views.get("rss"),
+                                               floor_parts=f"{what}: median {fmt_time(f)} of {len(fs)}"))
     return out
 
 
-def undo_figures(args, backends, dims, runs) -> list[Figure]:
+def undo_figures(args, dims, runs) -> list[Figure]:
     out = []
-    for bname in backends:
+    for bname in args.backends:
         undo = runs.get((bname, "undo")) or {}
         for grid in ("large", "small"):
             r = undo.get(grid)
@@ -941,169 +884,153 @@ def undo_figures(args, backends, dims, runs) -> list[Figure]:
                 continue
             u = r["undo"]
             out.append(Figure(f"undo() of the {args.edits:,}-edit txn", bname, u["seconds"], r["h"]["seconds"], "—",
-                              verdict(None), grid_label(*dims[grid]), cpu=u["cpu"], rss=u["rss"],
+                              verdict(None), triangles_label(*dims[grid]), cpu=u["cpu"], rss=u["rss"],
                               floor_parts=f"the {args.edits:,}-edit transaction itself, with history, commit included"))
     return out
 
 
-def report(args, backends, dims, runs, imports, profiles, skipped, errors) -> list[str]:
-    problems = list(errors)
-    notes: list[str] = []
+def gates(bench: Bench, dims: dict, runs: dict, imports: dict) -> None:
+    """The steps' problems (their gates failed), and the notes on what each step did."""
+    args, rep = bench.args, bench.report
     placements: dict = {}  # backend -> {what share_one_cpu said: [steps]}
     for (bname, step), r in runs.items():
         if r is None:
             continue
         if step == "check":
             for grid, c in r.items():
-                counts = "/".join(f"{x:,}" for x in c["counts"])
-                notes.append(f"{bname} {grid_label(*dims[grid])}: check() after undo() {c['seconds']:.2f} s, "
-                             f"{c['violations']} violation(s); counts V/H/E/P {counts}")
+                rep.notes.append(f"{bname} {triangles_label(*dims[grid])}: check() after undo() {c['seconds']:.2f} s, "
+                                 f"{c['violations']} violation(s); counts {counts_text(c['counts'])}")
                 if c["violations"]:
-                    problems.append(f"{bname} {grid}: check() found {c['violations']} violations, e.g. {c['examples']}")
+                    rep.problems.append(f"{bname} {grid}: check() found {c['violations']} violations, "
+                                        f"e.g. {c['examples']}")
             continue
-        problems.extend(f"{bname} {step}: {p}" for p in r.get("problems", []))
+        rep.problems.extend(f"{bname} {step}: {p}" for p in r.get("problems", []))
         if step == "setup":
-            notes.append(f"{bname}: stored " + ", ".join(f"{name} in {s:.1f} s" for name, s in r["seconds"].items())
-                         + " (import_arrays, untimed setup)")
+            rep.notes.append(f"{bname}: stored " + ", ".join(f"{name} in {s:.1f} s" for name, s in r["seconds"].items())
+                             + " (import_arrays, untimed setup)")
         if r.get("placement"):
             placements.setdefault(bname, {}).setdefault(r["placement"], []).append(step)
         if step == "edits":
             for grid in GRIDS:
                 e = r[grid]
-                notes.append(f"{bname} {grid_label(*dims[grid])}: {len(e['cells']):,} edit transactions took the mesh "
-                             f"with history from revision {e['r0']} to {e['revision']}")
+                rep.notes.append(f"{bname} {triangles_label(*dims[grid])}: {len(e['cells']):,} edit transactions took "
+                                 f"the mesh with history from revision {e['r0']} to {e['revision']}")
         if step == "views":
             for grid in GRIDS:
                 for since in (args.recent, args.edits):
                     v = r.get(f"{grid}/{since}")
-                    if v:
-                        notes.append(f"{bname} {grid_label(*dims[grid])}: at({v['revision']}) (R − {since:,}): "
-                                     f"{args.reads} vertices chosen, {v['touched']} of them corners of cells "
-                                     "edited since"
-                                     + "".join(f"; {kind} through the view timed on {len(v[kind]['samples'])} of them "
-                                               f"(the first call took {v[kind]['probe']:.2f} s; --view-budget "
-                                               f"{args.view_budget:g} s)" for kind in ("position", "one-ring")
-                                               if v[kind]["cut"]))
+                    if not v:
+                        continue
+                    cut = "".join(f"; {kind} through the view timed on {len(v[kind]['samples'])} of them (the first "
+                                  f"call took {v[kind]['probe']:.2f} s; --view-budget {args.view_budget:g} s)"
+                                  for kind in ("position", "one-ring") if v[kind]["cut"])
+                    rep.notes.append(f"{bname} {triangles_label(*dims[grid])}: at({v['revision']}) (R − {since:,}): "
+                                     f"{args.reads} vertices chosen, {v['touched']} of them corners of cells edited "
+                                     f"since{cut}")
         if step == "undo":
             for grid in GRIDS:
                 u = r.get(grid)
                 if u:
                     dv, de, dp = u["changed"]
-                    notes.append(f"{bname} {grid_label(*dims[grid])}: the {args.edits:,}-edit transaction changed "
-                                 f"V/E/F by {dv:+,}/{de:+,}/{dp:+,}; undo() made revision {u['undo']['revision']}; "
-                                 f"{u['sampled']:,} vertices compared before and after")
+                    rep.notes.append(f"{bname} {triangles_label(*dims[grid])}: the {args.edits:,}-edit transaction "
+                                     f"changed V/E/F by {dv:+,}/{de:+,}/{dp:+,}; undo() made revision "
+                                     f"{u['undo']['revision']}; {u['sampled']:,} vertices compared before and after")
     for bname, steps in placements.items():
         for placement, names in steps.items():
-            notes.append(f"{bname}: {', '.join(names)}: {placement}")
+            rep.notes.append(f"{bname}: {', '.join(names)}: {placement}")
     for (bname, flag), results in imports.items():
         for r in results:
             if r:
-                problems.extend(f"{bname} import: {p}" for p in r["problems"])
+                rep.problems.extend(f"{bname} import: {p}" for p in r["problems"])
         secs = ", ".join(f"{r['seconds']:.2f} s" for r in results if r)
-        notes.append(f"{bname}: import_arrays of the large grid, history={flag}: {secs} (fresh process and database "
-                     "each; peak RSS " + ", ".join(f"{r['rss'] / 2**20:,.0f} MiB" for r in results if r) + ")")
+        rep.notes.append(f"{bname}: import_arrays of the large grid, history={flag}: {secs} (fresh process and "
+                         "database each; peak RSS " + ", ".join(f"{r['rss'] / 2**20:,.0f} MiB" for r in results if r)
+                         + ")")
 
-    journal = journal_figures(args, backends, dims, runs, imports)
-    views = view_figures(args, backends, dims, runs)
-    undos = undo_figures(args, backends, dims, runs)
-    print()
-    print(f"hestore history benchmark — seed {args.seed}; {args.repeat} timed 1-polygon transactions per variant "
-          f"(after {args.warmup} untimed), {args.edits:,} edits, views {args.recent} and {args.edits:,} edits back")
-    print()
-    print("Journaling: each figure on the mesh with history, its floor the same work on the mesh created with")
-    print("history=False, each in a database of its own (time: the median of the n transactions, with and without")
-    print("history alternating call by call; the big transaction one run each; the import the fastest of n runs,")
-    print("each in a fresh process and database; mesh: triangles; target = SPEC §9, applied where marked):")
-    if journal:
-        print_figures(journal)
-    print()
-    print("Reading the past: mesh.at(r) of the mesh with history, R its revision after the edits (time: the median")
-    print("of the n calls — per vertex for the reads, after an untimed pass of both; its CPU: the reads' mean CPU")
-    print("per vertex in the measuring process; floor: the same read of the current mesh, same run; no SPEC number):")
-    if views:
-        print_figures(views)
-    print()
-    print(f"Undo: one run of mesh.undo() of the {args.edits:,}-edit transaction just committed (floor: that")
-    print("transaction, one run; no SPEC number):")
-    if undos:
-        print_figures(undos)
 
-    reads = views
-    if reads:
-        print()
-        print(f"Proportional to the changes since r: each view figure {args.recent} and {args.edits:,} edits back "
-              "(ratio = the second ÷ the first; view ÷ current beside each):")
-        rows = []
-        for bname in backends:
-            for grid in ("large", "small"):
-                label = grid_label(*dims[grid])
-                for kind, _ in VIEW_KINDS.values():
-                    pair = [next((f for f in reads if f.backend == bname and f.mesh == label
-                                  and f.name == f"{kind}, r = R − {s:,}"), None) for s in (args.recent, args.edits)]
-                    if None in pair:
-                        continue
-                    a, b = pair
-                    rows.append([bname, label, kind, fmt_time(a.time), f"{a.ratio:.2f}×",
-                                 fmt_time(b.time), f"{b.ratio:.2f}×", f"{b.time / a.time:.2f}×"])
-        print_table(["backend", "mesh", "figure", f"R − {args.recent}", "÷ current", f"R − {args.edits:,}",
-                     "÷ current", "ratio"], rows, "lrlrrrrr")
-        print()
-        small, large = grid_label(*dims["small"]), grid_label(*dims["large"])
-        print(f"Independent of the mesh: each figure on the {small}- and the {large}-triangle grid "
-              f"(ratio = {large} ÷ {small}):")
-        rows = []
-        for bname in backends:
-            names = dict.fromkeys(f.name for f in reads + undos if f.backend == bname)
-            for name in names:
-                pair = [next((f for f in reads + undos if f.backend == bname and f.name == name and f.mesh == m), None)
-                        for m in (small, large)]
+def proportional_rows(args, dims, views: list[Figure]) -> list[list[str]]:
+    """Each view figure --recent and --edits edits back, side by side."""
+    rows = []
+    for bname in args.backends:
+        for grid in ("large", "small"):
+            label = triangles_label(*dims[grid])
+            for kind, _ in VIEW_KINDS.values():
+                pair = [next((f for f in views if f.backend == bname and f.mesh == label
+                              and f.name == f"{kind}, r = R − {s:,}"), None) for s in (args.recent, args.edits)]
                 if None in pair:
                     continue
                 a, b = pair
-                rows.append([bname, name, fmt_time(a.time), fmt_time(b.time), f"{b.time / a.time:.2f}×",
-                             "—" if a.ratio is None else f"{a.ratio:.2f}×",
-                             "—" if b.ratio is None else f"{b.ratio:.2f}×"])
-        print_table(["backend", "figure", small, large, "ratio", f"÷ floor, {small}", f"÷ floor, {large}"], rows,
-                    "llrrrrr")
+                rows.append([bname, label, kind, fmt_time(a.time), f"{a.ratio:.2f}×",
+                             fmt_time(b.time), f"{b.ratio:.2f}×", f"{b.time / a.time:.2f}×"])
+    return rows
 
-    srows = []
-    for bname in backends:
+
+def mesh_size_rows(args, small: str, large: str, figures: list[Figure]) -> list[list[str]]:
+    """Each figure on the small grid beside the large one."""
+    rows = []
+    for bname in args.backends:
+        names = dict.fromkeys(f.name for f in figures if f.backend == bname)
+        for name in names:
+            pair = [next((f for f in figures if f.backend == bname and f.name == name and f.mesh == m), None)
+                    for m in (small, large)]
+            if None in pair:
+                continue
+            a, b = pair
+            rows.append([bname, name, fmt_time(a.time), fmt_time(b.time), f"{b.time / a.time:.2f}×",
+                         "—" if a.ratio is None else f"{a.ratio:.2f}×", "—" if b.ratio is None else f"{b.ratio:.2f}×"])
+    return rows
+
+
+def statement_rows(args, runs) -> list[list[str]]:
+    """The statements per 1-polygon transaction on the large grid, with and without history."""
+    rows = []
+    for bname in args.backends:
         txn = runs.get((bname, "txn1")) or {}
         for variant, name in VARIANTS.items():
             r = txn.get(f"large/{variant}")
             if not r:
                 continue
             for who, label in (("h", "history"), ("n", "history=False")):
-                st = r["statements"][who]
-                parts = [f"{k} {st[k]:.3g}" for k in Statements.KINDS if st.get(k)]
-                srows.append([bname, name, label, f"{sum(st.values()):.3g}: " + ", ".join(parts)])
-    if srows:
-        print()
-        print(f"SQL statements hestore sent on its driver cursor per 1-polygon transaction on the large grid "
+                rows.append([bname, name, label, Statements.per(r["statements"][who], unit="")])
+    return rows
+
+
+def report(bench: Bench, dims: dict, runs: dict, imports: dict) -> None:
+    args, rep = bench.args, bench.report
+    gates(bench, dims, runs, imports)
+    views = view_figures(args, dims, runs)
+    undos = undo_figures(args, dims, runs)
+    rep.title(f"hestore history benchmark — seed {args.seed}; {args.repeat} timed 1-polygon transactions per variant "
+              f"(after {args.warmup} untimed), {args.edits:,} edits, views {args.recent} and {args.edits:,} edits back")
+    rep.figures(journal_figures(args, dims, runs, imports), caption="""\
+Journaling: each figure on the mesh with history, its floor the same work on the mesh created with
+history=False, each in a database of its own (time: the median of the n transactions, with and without
+history alternating call by call; the big transaction one run each; the import the fastest of n runs,
+each in a fresh process and database; mesh: triangles; target = SPEC §9, applied where marked):""")
+    rep.figures(views, caption="""\
+Reading the past: mesh.at(r) of the mesh with history, R its revision after the edits (time: the median
+of the n calls — per vertex for the reads, after an untimed pass of both; its CPU: the reads' mean CPU
+per vertex in the measuring process; floor: the same read of the current mesh, same run; no SPEC number):""")
+    rep.figures(undos, caption=f"""\
+Undo: one run of mesh.undo() of the {args.edits:,}-edit transaction just committed (floor: that
+transaction, one run; no SPEC number):""")
+    if views:
+        rep.table(f"Proportional to the changes since r: each view figure {args.recent} and {args.edits:,} edits back "
+                  "(ratio = the second ÷ the first; view ÷ current beside each):",
+                  ["backend", "mesh", "figure", f"R − {args.recent}", "÷ current", f"R − {args.edits:,}", "÷ current",
+                   "ratio"], proportional_rows(args, dims, views), "lrlrrrrr")
+        small, large = triangles_label(*dims["small"]), triangles_label(*dims["large"])
+        rep.table(f"Independent of the mesh: each figure on the {small}- and the {large}-triangle grid "
+                  f"(ratio = {large} ÷ {small}):",
+                  ["backend", "figure", small, large, "ratio", f"÷ floor, {small}", f"÷ floor, {large}"],
+                  mesh_size_rows(args, small, large, views + undos), "llrrrrr")
+    rep.table(f"SQL statements hestore sent on its driver cursor per 1-polygon transaction on the large grid "
               f"({min(COUNTED, args.repeat)} transactions counted in an untimed pass through store.session.traced; "
-              "an executemany counts once; TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE):")
-        print_table(["backend", "figure", "mesh", "statements per transaction"], srows, "llll")
-    print_profiles("Profiles (cProfile on during the timed calls only; the top functions are those of the mesh with "
-                   "history):", profiles)
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  Gates: stored counts are the grid's; one revision per edit transaction with history, none kept without")
-    print("  (history() empty, at(1) and undo() refused); every read through a view equals the model of the grid with")
-    print("  the edits up to r, every read of the current mesh the model with all of them; at(r).counts() equals")
-    print("  counts(); the 1-polygon transactions change the counts by their known amount and at(r) before them gives")
-    print("  the old counts; after undo() the counts and every touched vertex's position and neighbours are as before,")
-    print("  diff() of the two revisions is empty; check() is empty; each import keeps one revision (none without).")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
-    print(f"  Peak RSS of the parent: {maxrss() / 2**20:.0f} MiB")
-    if journal or views or undos:
-        print_markdown(journal + views + undos)
-    return problems
+              "an executemany counts once; TXN = BEGIN/COMMIT/SAVEPOINT/RELEASE):",
+              ["backend", "figure", "mesh", "statements per transaction"], statement_rows(args, runs), "llll")
+    rep.close(ABOUT, profiles="Profiles (cProfile on during the timed calls only; the top functions are those of the "
+                              "mesh with history):", rss="Peak RSS of the parent")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

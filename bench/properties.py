@@ -65,51 +65,30 @@ crashes): every ``property_array`` gives back exactly the ids and values last
 written, each floor's SELECT gives back what it wrote, the stored positions
 after ``set_positions`` are the ones written (read with ``mesh.to_arrays()``,
 untimed), and the single values read back are the ones last set.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import shutil
-import sys
-import tempfile
 import time
-from collections import Counter
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import numpy as np
 
-import numpy as np  # noqa: E402
+import hestore
 
-import hestore  # noqa: E402
-from _common import (  # noqa: E402
-    print_profiles,
-    Figure,
-    Parser,
-    Runner,
-    child_main,
-    fmt_time,
-    import_mesh,
-    maxrss,
-    median,
-    mesh_label,
-    open_backend,
-    percentile,
-    pg_connect,
-    pg_copy_columns,
-    plain_connection,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_table,
-    selected_backends,
-    settle,
-    time_each,
-    timed,
-    url_of,
-    vacuum_analyze,
-    verdict,
-)
+from floors import PGCOPY_HEADER, by_id, pg_copy_columns
+from harness.bench import Bench
+from harness.cli import Parser, at_least, wants_profile
+from harness.databases import open_store, plain_connection, settle, url_of, vacuum
+from harness.profiling import Statements
+from harness.stats import finished, median, percentile
+from harness.tables import Figure, fmt_time, verdict
+from harness.timing import maxrss, time_each, timed
+from workloads import import_mesh, mesh_label
 
 QUICK = {"n": 60, "runs": 1, "repeat": 20, "profile": "off"}
 TARGET_RATIO = 2.0  # × the floor, column figures
@@ -126,6 +105,10 @@ STEP_LABEL = {
 }
 POSITIONS = "set_positions of every vertex"
 SINGLE = 'v["s"] = value, own transaction'
+ABOUT = """\
+Floors run in the same database (the same SQLite file through stdlib sqlite3 with hestore's pragmas;
+the same PostgreSQL schema through psycopg) on plain tables keyed by id; every property_array and floor
+SELECT is compared with the values last written, outside the timed regions."""
 
 
 # ==========================================================================
@@ -141,14 +124,6 @@ def column_values(what: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]
 
 def new_positions(n: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-1e3, 1e3, size=(n, 3))
-
-
-def _pg_vacuum(spec: dict, tables: list[str]) -> None:
-    """VACUUM (ANALYZE) of some tables on PostgreSQL (untimed: dead rows of an earlier run go)."""
-    if spec["backend"] == "postgresql":
-        with pg_connect(spec["url"], autocommit=True) as conn:
-            for table in tables:
-                conn.execute(f"VACUUM (ANALYZE) {table}")
 
 
 # ==========================================================================
@@ -168,9 +143,6 @@ def _rows(ids: np.ndarray, data: np.ndarray) -> list[tuple]:
     return list(zip(ids.tolist(), *(data[:, c].tolist() for c in range(data.shape[1]))))
 
 
-_PGCOPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + b"\x00" * 8
-
-
 def _pg_copy_binary(cur, table: str, cols: tuple[str, ...], ids: np.ndarray, data: np.ndarray) -> None:
     """``COPY table (id, cols) FROM STDIN (FORMAT BINARY)`` of one buffer built with numpy (no NULLs)."""
     data = data.reshape(len(ids), -1)
@@ -183,7 +155,7 @@ def _pg_copy_binary(cur, table: str, cols: tuple[str, ...], ids: np.ndarray, dat
     for c in range(len(cols)):
         block[f"l{c + 1}"], block[f"v{c + 1}"] = 8, data[:, c]
     with cur.copy(f"COPY {table} (id, {', '.join(cols)}) FROM STDIN (FORMAT BINARY)") as copy:
-        copy.write(_PGCOPY_HEADER)
+        copy.write(PGCOPY_HEADER)
         copy.write(block.tobytes())
         copy.write(b"\xff\xff")
 
@@ -206,13 +178,6 @@ def _write(plain, backend: str, table: str, cols: tuple[str, ...], ids, data, *,
     cur.execute("COMMIT")
 
 
-def _by_id(rows: np.ndarray) -> np.ndarray:
-    ids = rows[:, 0]
-    if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
-        rows = rows[np.argsort(ids, kind="stable")]
-    return rows
-
-
 def _select_fetchall(plain, table, cols):
     plain.cur.execute(f"SELECT id, {', '.join(cols)} FROM {table} ORDER BY id")
     return np.array(plain.cur.fetchall(), dtype=np.float64)
@@ -225,7 +190,7 @@ def _select_fromiter(plain, table, cols):
 
 def _select_copy(plain, table, cols):
     columns = pg_copy_columns(plain.cur, ["id", *cols], f"FROM {table}", [np.int64] + [np.float64] * len(cols))
-    return _by_id(np.column_stack([c.astype(np.float64) for c in columns]))
+    return by_id(np.column_stack([c.astype(np.float64) for c in columns]))
 
 
 SELECTS = {
@@ -306,7 +271,7 @@ def job_floor_positions(spec: dict) -> dict:
     for way in ways:
         _create(plain, "floor_positions", cols)
         _write(plain, backend, "floor_positions", cols, ids, old, delete=False)
-        _pg_vacuum(spec, ["floor_positions"])
+        vacuum(spec, ["floor_positions"])
         settle(spec)
         run = timed(lambda way=way: _update_positions(cur, way, ids, xyz))
         variants[way] = [run.seconds, run.cpu]
@@ -325,7 +290,7 @@ def job_floor_single(spec: dict) -> dict:
     cur = plain.cur
     _create(plain, "floor_single", ("v",))
     _write(plain, spec["backend"], "floor_single", ("v",), np.arange(V, dtype=np.int64), np.zeros(V), delete=False)
-    _pg_vacuum(spec, ["floor_single"])
+    vacuum(spec, ["floor_single"])
     vals = np.random.default_rng(spec["seed"] + 3).standard_normal(len(picks)).tolist()
     items = list(zip(vals, picks))
     if spec["backend"] == "sqlite":
@@ -364,7 +329,7 @@ def _declare(spec: dict, mesh, name: str, shape: tuple, default=None) -> None:
     """A fresh property (an earlier run's one removed first, its dead rows vacuumed on PostgreSQL)."""
     if name in mesh.properties("vertex"):
         mesh.remove_property("vertex", name)
-        _pg_vacuum(spec, ["property_reals"])
+        vacuum(spec, ["property_reals"])
     mesh.add_property("vertex", name, "float64", shape=shape, default=default)
 
 
@@ -420,7 +385,7 @@ def job_single(spec: dict) -> dict:
     _declare(spec, mesh, "s", (), 0.0)
     # Every vertex holds a value first (untimed), as every row of the floor's table does.
     mesh.set_property_array("vertex", "s", np.arange(spec["vertices"]), np.zeros(spec["vertices"]))
-    _pg_vacuum(spec, ["property_reals"])
+    vacuum(spec, ["property_reals"])
     handles = [mesh.vertex(i) for i in picks]
     vals = np.random.default_rng(spec["seed"] + 3).standard_normal(len(picks)).tolist()
     items = list(zip(handles, vals))
@@ -437,25 +402,25 @@ def job_single(spec: dict) -> dict:
         samples, _, cpu = time_each(one, items)
         profiles = {}
     problems = [] if all(v["s"] == x for v, x in items) else ['v["s"]: a value read back differs from the one set']
-    kinds: Counter = Counter()
+    counter = Statements()
     others = [mesh.vertex(int(i)) for i in picks[:COUNTED]]
-    with store.session.traced(lambda sql: kinds.update([sql.lstrip().split(None, 1)[0].upper()])):
+    with store.session.traced(counter):
         for v in others:
             v["s"] = 1.5
     store.close()
-    return {"samples": samples, "cpu": cpu, "statements": dict(kinds), "profiles": profiles, "problems": problems,
-            "rss": maxrss()}
+    return {"samples": samples, "cpu": cpu, "statements": dict(counter.by_word), "profiles": profiles,
+            "problems": problems, "rss": maxrss()}
 
 
 def job_setup(spec: dict) -> dict:
     """Store the grid (untimed) and VACUUM (ANALYZE) on PostgreSQL."""
     t0 = time.perf_counter()
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         report = import_mesh(store, "grid", spec["n"], "")
         counts = report.mesh.counts()
         ids = report.mesh.to_arrays().vertex_ids
     seconds = time.perf_counter() - t0
-    vacuum_analyze(spec)
+    vacuum(spec)
     return {"seconds": seconds, "vertices": counts.vertices, "polygons": counts.polygons,
             "dense": bool(np.array_equal(ids, np.arange(len(ids))))}
 
@@ -469,68 +434,40 @@ JOBS = {"setup": job_setup, "floor_column": job_floor_column, "floor_positions":
 
 
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, children=True, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)",
-                profile="profile hestore in a separate run when a figure is over target (default), always, or never")
-    ap.add_argument("--runs", type=int, default=3, help="runs of each column figure (default 3), each in a fresh "
-                                                        "process")
-    ap.add_argument("--repeat", type=int, default=200, help="single-value transactions per run (default 200)")
+    ap = Parser(__doc__, quick=QUICK, grid=710, jobs=JOBS, profile=True, seed=20240601)
+    ap.add_argument("--runs", type=at_least(1), default=3,
+                    help="runs of each column figure (default 3), each in a fresh process")
+    ap.add_argument("--repeat", type=at_least(1), default=200,
+                    help="single-value transactions per run (default 200)")
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    backends = selected_backends(ap, args)
-    if args.runs < 1 or args.repeat < 1:
-        ap.error("--runs and --repeat must be at least 1")
-
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_properties_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
 
     setups: dict = {}  # backend -> result
     runs: dict = {}  # (backend, job, what) -> [result per run]
-    profiles: list[tuple[str, str, str]] = []
-    skipped: list[str] = []
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
-                    continue
-                pg_version = place.version or pg_version
-                spec = dict(place.fresh("properties_grid"), n=args.n, seed=args.seed)
-                setups[bname] = setup = runner.run(job="setup", **spec)
-                if setup is None:
-                    continue
-                V = setup["vertices"]
-                picks = np.random.default_rng(args.seed).choice(V, size=min(args.repeat, V), replace=False).tolist()
-                spec.update(mesh="grid", vertices=V, picks=picks)
-                pairs = [("floor_column", "column", w) for w in COLUMNS]
-                pairs += [("floor_positions", "positions", ""), ("floor_single", "single", "")]
-                for r in range(args.runs):
-                    for floor_job, job, what in pairs:
-                        order = (floor_job, job) if r % 2 == 0 else (job, floor_job)
-                        for j in order:
-                            runs.setdefault((bname, j, what), []).append(runner.run(job=j, what=what, run=r, **spec))
-                profile_over(args, runner, spec, bname, runs, profiles)
-                place.drop(spec)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-
-    problems = report(args, backends, setups, runs, profiles, skipped, runner.errors)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if problems else 0
+    with Bench(args, "properties", __file__) as bench:
+        for place in bench.for_each_backend():
+            bname = place.backend
+            spec = dict(place.fresh("properties_grid"), n=args.n, seed=args.seed)
+            setups[bname] = setup = bench.runner.run(job="setup", **spec)
+            if setup is None:
+                continue
+            V = setup["vertices"]
+            picks = np.random.default_rng(args.seed).choice(V, size=min(args.repeat, V), replace=False).tolist()
+            spec.update(mesh="grid", vertices=V, picks=picks)
+            pairs = [("floor_column", "column", w) for w in COLUMNS]
+            pairs += [("floor_positions", "positions", ""), ("floor_single", "single", "")]
+            for r in range(args.runs):
+                for floor_job, job, what in pairs:
+                    order = (floor_job, job) if r % 2 == 0 else (job, floor_job)
+                    for j in order:
+                        runs.setdefault((bname, j, what), []).append(bench.runner.run(job=j, what=what, run=r, **spec))
+            profile_over(bench, spec, bname, runs)
+            place.drop(spec)
+    report(bench, setups, runs)
+    return bench.finish()
 
 
 # ==========================================================================
 # Figures
-
-
-def _done(runs: dict, key: tuple) -> list[dict]:
-    return [r for r in runs.get(key, []) if r]
 
 
 def _one_shot(results: list[dict], step: str) -> tuple[float, float] | None:
@@ -550,7 +487,7 @@ def column_figures(runs: dict, bname: str, label: str) -> list[tuple[str, str, s
     """(job, what, step, Figure) of every column-like figure of one backend (the columns and set_positions)."""
     out = []
     for what, (name, _, _) in COLUMNS.items():
-        mine, floor = _done(runs, (bname, "column", what)), _done(runs, (bname, "floor_column", what))
+        mine, floor = finished(runs, (bname, "column", what)), finished(runs, (bname, "floor_column", what))
         for step in STEPS:
             got = _one_shot(mine, step)
             if got is None:
@@ -569,7 +506,7 @@ def column_figures(runs: dict, bname: str, label: str) -> list[tuple[str, str, s
                          f"≤ {TARGET_RATIO:g}× floor", verdict(ok), label, n=len(mine), cpu=got[1],
                          rss=max(r["rss"] for r in mine), floor_parts=parts)
             out.append(("column", what, step, fig))
-    mine, floor = _done(runs, (bname, "positions", "")), _done(runs, (bname, "floor_positions", ""))
+    mine, floor = finished(runs, (bname, "positions", "")), finished(runs, (bname, "floor_positions", ""))
     got = _one_shot(mine, "set")
     if got is not None:
         variants = _variants(floor, "variants")
@@ -583,7 +520,7 @@ def column_figures(runs: dict, bname: str, label: str) -> list[tuple[str, str, s
 
 
 def single_figure(runs: dict, bname: str, label: str) -> Figure | None:
-    mine, floor = _done(runs, (bname, "single", "")), _done(runs, (bname, "floor_single", ""))
+    mine, floor = finished(runs, (bname, "single", "")), finished(runs, (bname, "floor_single", ""))
     if not mine:
         return None
     calls = [s / 1e9 for r in mine for s in r["samples"]]
@@ -595,20 +532,21 @@ def single_figure(runs: dict, bname: str, label: str) -> Figure | None:
                   rss=max(r["rss"] for r in mine))
 
 
-def profile_over(args, runner: Runner, spec: dict, bname: str, runs: dict, profiles: list) -> None:
+def profile_over(bench: Bench, spec: dict, bname: str, runs: dict) -> None:
     """Run each figure over its target (or every one, with ``--profile all``) once more under cProfile."""
+    args = bench.args
     if args.profile == "off":
         return
     label = mesh_label("grid", args.n)
     chosen: dict = {}
     for job, what, step, fig in column_figures(runs, bname, label):
-        if args.profile == "all" or fig.verdict == "over":
+        if wants_profile(args, fig.verdict == "over"):
             chosen.setdefault((job, what), []).append(step)
     fig = single_figure(runs, bname, label)
-    if fig is not None and (args.profile == "all" or fig.verdict == "over"):
+    if fig is not None and wants_profile(args, fig.verdict == "over"):
         chosen[("single", "")] = ["single"]
     for (job, what), steps in chosen.items():
-        prof = runner.run(job=job, what=what, run=args.runs, profile=steps, **spec)
+        prof = bench.runner.run(job=job, what=what, run=args.runs, profile=steps, **spec)
         if not prof:
             continue
         for step, (text, dominant) in prof["profiles"].items():
@@ -617,97 +555,79 @@ def profile_over(args, runner: Runner, spec: dict, bname: str, runs: dict, profi
             else:
                 title = SINGLE if job == "single" else POSITIONS
             seconds = prof[step][0] if step in prof else sum(prof["samples"]) / 1e9
-            profiles.append((f"{bname}: {title} under cProfile ({seconds:.2f} s with the profiler on)", dominant,
-                             text))
+            bench.report.profiles.append((f"{bname}: {title} under cProfile ({seconds:.2f} s with the profiler on)",
+                                          dominant, text))
 
 
-def report(args, backends, setups, runs, profiles, skipped, errors) -> list[str]:
-    problems = list(errors)
+def variant_rows(runs: dict, bname: str) -> list[list[str]]:
+    """Every floor variant of one backend, beside hestore's ratio to it."""
+    rows = []
+    for what in COLUMNS:
+        floor = finished(runs, (bname, "floor_column", what))
+        mine = _one_shot(finished(runs, (bname, "column", what)), "read")
+        for variant, seconds in _variants(floor, "reads").items():
+            ratio = f"{mine[0] / seconds:.2f}×" if mine and seconds else "—"
+            rows.append([f"read {COLUMN_LABEL[what]}", bname, variant, fmt_time(seconds), ratio])
+        for step in ("set", "overwrite"):
+            got, mine_step = _one_shot(floor, step), _one_shot(finished(runs, (bname, "column", what)), step)
+            if got:
+                way = "executemany INSERT" if bname == "sqlite" else "COPY FROM STDIN (FORMAT BINARY), numpy"
+                if step == "overwrite":
+                    way = "DELETE FROM + " + way
+                ratio = f"{mine_step[0] / got[0]:.2f}×" if mine_step else "—"
+                rows.append([f"{step} {COLUMN_LABEL[what]}", bname, way, fmt_time(got[0]), ratio])
+    floor = finished(runs, (bname, "floor_positions", ""))
+    mine = _one_shot(finished(runs, (bname, "positions", "")), "set")
+    for variant, seconds in _variants(floor, "variants").items():
+        ratio = f"{mine[0] / seconds:.2f}×" if mine and seconds else "—"
+        rows.append(["set_positions", bname, variant, fmt_time(seconds), ratio])
+    return rows
+
+
+def report(bench: Bench, setups: dict, runs: dict) -> None:
+    args, rep = bench.args, bench.report
     figures: list[Figure] = []
-    variant_rows: list[list[str]] = []
-    notes: list[str] = []
+    variants: list[list[str]] = []
     label = mesh_label("grid", args.n)
-    for bname in backends:
+    for bname in args.backends:
         setup = setups.get(bname)
         if not setup:
             continue
-        notes.append(f"{bname}: grid stored in {setup['seconds']:.1f} s (setup, not a figure): "
-                     f"{setup['vertices']:,} vertices, {setup['polygons']:,} triangles")
+        rep.notes.append(f"{bname}: grid stored in {setup['seconds']:.1f} s (setup, not a figure): "
+                         f"{setup['vertices']:,} vertices, {setup['polygons']:,} triangles")
         if not setup["dense"]:
-            problems.append(f"{bname}: the grid's vertex ids are not 0..{setup['vertices'] - 1}")
+            rep.problems.append(f"{bname}: the grid's vertex ids are not 0..{setup['vertices'] - 1}")
         for key, results in runs.items():
             if key[0] == bname:
                 for r in results:
-                    problems.extend(f"{bname}: {p}" for p in (r or {}).get("problems", []))
-        found = column_figures(runs, bname, label)
-        figures.extend(fig for *_, fig in found)
+                    rep.problems.extend(f"{bname}: {p}" for p in (r or {}).get("problems", []))
+        figures.extend(fig for *_, fig in column_figures(runs, bname, label))
         fig = single_figure(runs, bname, label)
         if fig is not None:
             figures.append(fig)
-            mine = _done(runs, (bname, "single", ""))
-            kinds = mine[0].get("statements", {})
-            per = ", ".join(f"{k} {c / COUNTED:g}" for k, c in sorted(kinds.items()))
-            notes.append(f"{bname}: {SINGLE}: statements hestore sent per call (untimed pass over {COUNTED} "
-                         f"vertices, store.session.traced): {per or 'none'}")
-        # Every floor variant, beside hestore's ratio to it.
-        for what in COLUMNS:
-            floor = _done(runs, (bname, "floor_column", what))
-            mine = _one_shot(_done(runs, (bname, "column", what)), "read")
-            for variant, seconds in _variants(floor, "reads").items():
-                ratio = f"{mine[0] / seconds:.2f}×" if mine and seconds else "—"
-                variant_rows.append([f"read {COLUMN_LABEL[what]}", bname, variant, fmt_time(seconds), ratio])
-            for step in ("set", "overwrite"):
-                got, mine_step = _one_shot(floor, step), _one_shot(_done(runs, (bname, "column", what)), step)
-                if got:
-                    way = "executemany INSERT" if bname == "sqlite" else "COPY FROM STDIN (FORMAT BINARY), numpy"
-                    if step == "overwrite":
-                        way = "DELETE FROM + " + way
-                    ratio = f"{mine_step[0] / got[0]:.2f}×" if mine_step else "—"
-                    variant_rows.append([f"{step} {COLUMN_LABEL[what]}", bname, way, fmt_time(got[0]), ratio])
-        floor = _done(runs, (bname, "floor_positions", ""))
-        mine = _one_shot(_done(runs, (bname, "positions", "")), "set")
-        for variant, seconds in _variants(floor, "variants").items():
-            ratio = f"{mine[0] / seconds:.2f}×" if mine and seconds else "—"
-            variant_rows.append(["set_positions", bname, variant, fmt_time(seconds), ratio])
+            kinds = finished(runs, (bname, "single", ""))[0].get("statements", {})
+            rep.notes.append(f"{bname}: {SINGLE}: statements hestore sent per call (untimed pass over {COUNTED} "
+                             f"vertices, store.session.traced): {Statements.per_word(kinds, COUNTED)}")
+        variants += variant_rows(runs, bname)
         for (b, job, what), results in sorted(runs.items()):
             if b == bname and job in ("column", "positions"):
                 done = [r for r in results if r]
-                steps = STEPS if job == "column" else ("set",)
-                for step in steps:
+                for step in STEPS if job == "column" else ("set",):
                     each = ", ".join(fmt_time(r[step][0]) for r in done)
                     title = (STEP_LABEL[step].format(name=COLUMNS[what][0], what=COLUMN_LABEL[what])
                              if job == "column" else POSITIONS)
-                    notes.append(f"{bname}: {title}: each run {each}")
+                    rep.notes.append(f"{bname}: {title}: each run {each}")
 
-    print()
-    print(f"hestore property benchmark — the stored {label}, {args.runs} run(s) of each column figure, "
-          f"{args.repeat} single-value transactions per run, each run in a fresh process")
-    print()
-    if figures:
-        print_figures(figures)
-    print("(time: one call, the median of the runs (n); for the single value the median of all calls (n) of all")
-    print(" runs, and the floor the median of the floor's calls; its CPU: the measuring process's user + system")
-    print(" time, without the database server's; peak RSS: of the process that ran the figure's steps)")
-    if variant_rows:
-        print()
-        print("Floor variants, every one measured (median of the runs; ratio = hestore's time ÷ this variant's):")
-        print_table(["figure", "backend", "floor variant", "time", "hestore ÷"], variant_rows, "lllrr")
-    print_profiles("Profiles of the figures over their target:", profiles)
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  Floors run in the same database (the same SQLite file through stdlib sqlite3 with hestore's pragmas;")
-    print("  the same PostgreSQL schema through psycopg) on plain tables keyed by id; every property_array and floor")
-    print("  SELECT is compared with the values last written, outside the timed regions.")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
-    if figures:
-        print_markdown(figures)
-    return problems
+    rep.title(f"hestore property benchmark — the stored {label}, {args.runs} run(s) of each column figure, "
+              f"{args.repeat} single-value transactions per run, each run in a fresh process")
+    rep.figures(figures, after="""\
+(time: one call, the median of the runs (n); for the single value the median of all calls (n) of all
+ runs, and the floor the median of the floor's calls; its CPU: the measuring process's user + system
+ time, without the database server's; peak RSS: of the process that ran the figure's steps)""")
+    rep.table("Floor variants, every one measured (median of the runs; ratio = hestore's time ÷ this variant's):",
+              ["figure", "backend", "floor variant", "time", "hestore ÷"], variants, "lllrr")
+    rep.close(ABOUT, profiles="Profiles of the figures over their target:")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -44,46 +44,28 @@ Correctness gates, outside the timed loops (the exit status is non-zero only
 when one fails or a step crashes): for every vertex the neighbours hestore
 returns equal the floor's targets as multisets, and the floor's equal the
 grid's known neighbours.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
 import random
-import shutil
-import sys
-import tempfile
 import time
-from collections import Counter
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import hestore
 
-import hestore  # noqa: E402
-from _common import (  # noqa: E402
-    Figure,
-    Parser,
-    Runner,
-    child_main,
-    fmt_time,
-    import_mesh,
-    maxrss,
-    mesh_label,
-    open_backend,
-    pc,
-    percentile,
-    plain_connection,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_table,
-    selected_backends,
-    settle,
-    time_each,
-    url_of,
-    vacuum_analyze,
-    verdict,
-)
+from harness.bench import Bench
+from harness.cli import Parser, at_least
+from harness.databases import open_store, plain_connection, settle, url_of, vacuum
+from harness.profiling import Statements
+from harness.stats import finished, percentile
+from harness.tables import Figure, fmt_time, verdict
+from harness.timing import maxrss, pc, time_each
+from workloads import counts_text, import_mesh, mesh_label
 
 QUICK = {"n": 100, "vertices": 1000, "runs": 1}
 TARGET_FRESH = 2.0  # × the floor
@@ -94,16 +76,22 @@ STAR = ("SELECT h.id, t.origin FROM halfedges h{hint} JOIN halfedges t ON t.mesh
 #: SQLite plans the plain query as a scan of the mesh's primary-key range when the file has no statistics
 #: (hestore runs no ANALYZE on SQLite), so the floor names its index, as hestore's own star query does.
 HINT = {"sqlite": " INDEXED BY ix_halfedges_origin", "postgresql": ""}
+#: Each step's figure, in the order the steps run (rotated each run).
+FIGURES = {
+    "floor": "floor: one indexed SELECT of the star",
+    "fresh": "mesh.vertex(i).neighbors(), fresh store",
+    "held": "v.neighbors(), handles held",
+}
+JOBS_ORDER = tuple(FIGURES)
+ABOUT = """\
+The floor runs on a fresh plain-driver connection per run: stdlib sqlite3 with hestore's pragmas (WAL,
+synchronous=NORMAL, 64 MiB cache), psycopg in autocommit; every star is compared with the grid's known
+neighbours, and hestore's neighbours with the floor's targets, as multisets, outside the timed loops."""
 
 
 def star_sql(backend: str, mark: str, hint: bool = True) -> str:
+    """The floor's query of one vertex's star, with the driver's placeholder ``mark``."""
     return STAR.format(p=mark, hint=HINT[backend] if hint else "")
-JOBS_ORDER = ("floor", "fresh", "held")
-FIGURES = {
-    "fresh": "mesh.vertex(i).neighbors(), fresh store",
-    "held": "v.neighbors(), handles held",
-    "floor": "floor: one indexed SELECT of the star",
-}
 
 
 # ==========================================================================
@@ -135,12 +123,12 @@ def grid_neighbors(v: int, n: int) -> list[int]:
 def job_setup(spec: dict) -> dict:
     """Store the grid (untimed), VACUUM (ANALYZE) on PostgreSQL, and read the floor query's plan."""
     t0 = time.perf_counter()
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         report = import_mesh(store, "grid", spec["n"], "")
         counts = report.mesh.counts()
         mesh_id = report.mesh.id
     seconds = time.perf_counter() - t0
-    vacuum_analyze(spec)
+    vacuum(spec)
     plain = plain_connection(spec)
     v = (spec["n"] // 2) * (spec["n"] + 1)  # a vertex in the middle
     plans = {}
@@ -181,11 +169,11 @@ def job_floor(spec: dict) -> dict:
 
 
 def _statements(store: hestore.Store, calls) -> dict:
-    """How many statements of each kind hestore sends for ``calls()`` (an untimed pass)."""
-    kinds: Counter = Counter()
-    with store.session.traced(lambda sql: kinds.update([sql.lstrip().split(None, 1)[0].upper()])):
+    """How many statements hestore sends for ``calls()``, by first word (an untimed pass)."""
+    counter = Statements()
+    with store.session.traced(counter):
         calls()
-    return dict(kinds)
+    return dict(counter.by_word)
 
 
 def job_fresh(spec: dict) -> dict:
@@ -228,52 +216,29 @@ JOBS = {"setup": job_setup, "floor": job_floor, "fresh": job_fresh, "held": job_
 
 
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, children=True, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)")
-    ap.add_argument("--vertices", type=int, default=10000, help="random vertices per run (default 10000)")
-    ap.add_argument("--runs", type=int, default=5, help="runs of each figure (default 5), each in a fresh process")
+    ap = Parser(__doc__, quick=QUICK, grid=710, jobs=JOBS, seed=20240601)
+    ap.add_argument("--vertices", type=at_least(1), default=10000, help="random vertices per run (default 10000)")
+    ap.add_argument("--runs", type=at_least(1), default=5,
+                    help="runs of each figure (default 5), each in a fresh process")
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    backends = selected_backends(ap, args)
-    if args.vertices < 1 or args.runs < 1:
-        ap.error("--vertices and --runs must be at least 1")
 
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_reads_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
     ids, others = sample_ids(args.n, args.vertices, args.seed)
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
-
     setups: dict = {}  # backend -> result
     runs: dict = {}  # (backend, job) -> [result per run]
-    skipped: list[str] = []
-    pg_version = None
-    try:
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
-                    continue
-                pg_version = place.version or pg_version
-                spec = dict(place.fresh("reads_grid"), n=args.n)
-                setups[bname] = setup = runner.run(job="setup", **spec)
-                if setup is None:
-                    continue
-                spec.update(mesh="grid", mesh_id=setup["mesh_id"], ids=ids, others=others)
-                for r in range(args.runs):
-                    for k in range(len(JOBS_ORDER)):  # rotated each run, so that drift spreads over all three
-                        job = JOBS_ORDER[(k + r) % len(JOBS_ORDER)]
-                        runs.setdefault((bname, job), []).append(runner.run(job=job, **spec))
-                place.drop(spec)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-
-    problems = report(args, backends, ids, setups, runs, skipped, runner.errors)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start)
-    return 1 if problems else 0
+    with Bench(args, "reads", __file__) as bench:
+        for place in bench.for_each_backend():
+            spec = dict(place.fresh("reads_grid"), n=args.n)
+            setups[place.backend] = setup = bench.runner.run(job="setup", **spec)
+            if setup is None:
+                continue
+            spec.update(mesh="grid", mesh_id=setup["mesh_id"], ids=ids, others=others)
+            for r in range(args.runs):
+                for k in range(len(JOBS_ORDER)):  # rotated each run, so that drift spreads over all three
+                    job = JOBS_ORDER[(k + r) % len(JOBS_ORDER)]
+                    runs.setdefault((place.backend, job), []).append(bench.runner.run(job=job, **spec))
+            place.drop(spec)
+    report(bench, ids, setups, runs)
+    return bench.finish()
 
 
 def per_vertex(results: list[dict]) -> tuple[float, float, float, float]:
@@ -285,105 +250,92 @@ def per_vertex(results: list[dict]) -> tuple[float, float, float, float]:
             max(r["rss"] for r in results))
 
 
-def report(args, backends, ids, setups, runs, skipped, errors) -> list[str]:
-    problems = list(errors)
+def backend_figures(bench: Bench, bname: str, ids: list[int], want: list, done: dict) -> list[Figure]:
+    """The three figures of one backend (floor, fresh store, handles held), their notes and their gates."""
+    args, rep = bench.args, bench.report
+    label = mesh_label("grid", args.n)
+    floor = per_vertex(done["floor"]) if done["floor"] else None
+    figures = []
+    for job in ("floor", "fresh", "held"):
+        results = done[job]
+        if not results:
+            continue
+        t, p90, cpu, rss = per_vertex(results)
+        if job == "floor":
+            target, ok, fl = "—", None, None
+        elif job == "fresh":
+            target = f"≤ {TARGET_FRESH:g}× floor"
+            ok = None if floor is None else t <= TARGET_FRESH * floor[0]
+            fl = floor[0] if floor else None
+        else:
+            target, ok, fl = f"≤ {fmt_time(TARGET_HELD)}", t <= TARGET_HELD, floor[0] if floor else None
+        figures.append(Figure(FIGURES[job], bname, t, fl, target, verdict(ok), label, n=len(ids), p90=p90, cpu=cpu,
+                              rss=rss))
+        # Correctness: every run's stars against the grid's known neighbours (the floor) or the floor (hestore).
+        for k, r in enumerate(results):
+            ref = want if job == "floor" else (done["floor"][0]["stars"] if done["floor"] else None)
+            if ref is None:
+                rep.problems.append(f"{bname}: {job} run {k + 1} not verified: no floor run")
+                continue
+            bad = [i for i, (a, b) in enumerate(zip(r["stars"], ref)) if a != b]
+            if bad or len(r["stars"]) != len(ref):
+                i = bad[0] if bad else min(len(r["stars"]), len(ref))
+                what = "the grid's neighbours" if job == "floor" else "the floor's targets"
+                rep.problems.append(f"{bname}: {job} run {k + 1}: {len(bad)} of {len(ref):,} vertices differ from "
+                                    f"{what}, e.g. vertex {ids[i] if i < len(ids) else '?'}")
+        firsts = sorted(r["samples"][0] / 1e9 for r in results)
+        extra = ""
+        if job == "fresh":
+            extra = f"; hestore.open + store.mesh {fmt_time(percentile([r['opened'] for r in results], 0.5))}"
+        if job == "held":
+            extra = (f"; taking the handles (mesh.vertex(i) each, untimed) "
+                     f"{fmt_time(percentile([r['taking'] for r in results], 0.5))}")
+        single = percentile([s for r in results for s in r["samples"]], 0.5) / 1e9
+        rep.notes.append(f"{bname}: {FIGURES[job]}: per vertex in each run "
+                         + ", ".join(fmt_time(sum(r["samples"]) / len(r["samples"]) / 1e9) for r in results)
+                         + f"; median single call {fmt_time(single)}"
+                         + f"; first call {fmt_time(percentile(firsts, 0.5))} (median of runs){extra}")
+        if "statements" in results[0]:
+            rep.notes.append(f"{bname}: {FIGURES[job]}: statements hestore sent per vertex (untimed pass over "
+                             f"{COUNTED} other vertices, store.session.traced): "
+                             f"{Statements.per_word(results[0]['statements'], COUNTED)}")
+    return figures
+
+
+def report(bench: Bench, ids: list[int], setups: dict, runs: dict) -> None:
+    args, rep = bench.args, bench.report
     figures: list[Figure] = []
-    notes: list[str] = []
     plans: list[list[str]] = []
     label = mesh_label("grid", args.n)
     want = [grid_neighbors(v, args.n) for v in ids]
-    for bname in backends:
-        setup = setups.get(bname)
+    for bname, setup in setups.items():  # in the order the backends ran; a failed setup left None
         if not setup:
             continue
-        V, H, E, P = setup["counts"]
-        notes.append(f"{bname}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
-                     f"V/H/E/P {V:,}/{H:,}/{E:,}/{P:,}")
+        rep.notes.append(f"{bname}: stored in {setup['seconds']:.1f} s (setup, not a figure): "
+                         f"{counts_text(setup['counts'])}")
         for line in setup["plan"]:
             plans.append([bname, "the floor's query", line])
         for line in setup["plain_plan"] or []:
             plans.append([bname, "without INDEXED BY", line])
         if not setup["uses_index"]:
-            problems.append(f"{bname}: the floor's query plan does not use ix_halfedges_origin: "
-                            + "; ".join(setup["plan"]))
-        done = {job: [r for r in runs.get((bname, job), []) if r] for job in JOBS_ORDER}
-        floor = per_vertex(done["floor"]) if done["floor"] else None
-        for job in ("floor", "fresh", "held"):
-            results = done[job]
-            if not results:
-                continue
-            t, p90, cpu, rss = per_vertex(results)
-            if job == "floor":
-                target, ok, fl = "—", None, None
-            elif job == "fresh":
-                target = f"≤ {TARGET_FRESH:g}× floor"
-                ok = None if floor is None else t <= TARGET_FRESH * floor[0]
-                fl = floor[0] if floor else None
-            else:
-                target, ok, fl = f"≤ {fmt_time(TARGET_HELD)}", t <= TARGET_HELD, floor[0] if floor else None
-            figures.append(Figure(FIGURES[job], bname, t, fl, target, verdict(ok), label, n=len(ids), p90=p90, cpu=cpu,
-                                  rss=rss))
-            # Correctness: every run's stars against the grid's known neighbours (the floor) or the floor (hestore).
-            for k, r in enumerate(results):
-                ref = want if job == "floor" else (done["floor"][0]["stars"] if done["floor"] else None)
-                if ref is None:
-                    problems.append(f"{bname}: {job} run {k + 1} not verified: no floor run")
-                    continue
-                bad = [i for i, (a, b) in enumerate(zip(r["stars"], ref)) if a != b]
-                if bad or len(r["stars"]) != len(ref):
-                    i = bad[0] if bad else min(len(r["stars"]), len(ref))
-                    what = "the grid's neighbours" if job == "floor" else "the floor's targets"
-                    problems.append(f"{bname}: {job} run {k + 1}: {len(bad)} of {len(ref):,} vertices differ from "
-                                    f"{what}, e.g. vertex {ids[i] if i < len(ids) else '?'}")
-            firsts = sorted(r["samples"][0] / 1e9 for r in results)
-            extra = ""
-            if job == "fresh":
-                extra = f"; hestore.open + store.mesh {fmt_time(percentile([r['opened'] for r in results], 0.5))}"
-            if job == "held":
-                extra = (f"; taking the handles (mesh.vertex(i) each, untimed) "
-                         f"{fmt_time(percentile([r['taking'] for r in results], 0.5))}")
-            single = percentile([s for r in results for s in r["samples"]], 0.5) / 1e9
-            notes.append(f"{bname}: {FIGURES[job]}: per vertex in each run "
-                         + ", ".join(fmt_time(sum(r["samples"]) / len(r["samples"]) / 1e9) for r in results)
-                         + f"; median single call {fmt_time(single)}"
-                         + f"; first call {fmt_time(percentile(firsts, 0.5))} (median of runs){extra}")
-            if "statements" in results[0]:
-                kinds = results[0]["statements"]
-                per = ", ".join(f"{k} {c / COUNTED:g}" for k, c in sorted(kinds.items()))
-                notes.append(f"{bname}: {FIGURES[job]}: statements hestore sent per vertex (untimed pass over "
-                             f"{COUNTED} other vertices, store.session.traced): {per or 'none'}")
+            rep.problems.append(f"{bname}: the floor's query plan does not use ix_halfedges_origin: "
+                                + "; ".join(setup["plan"]))
+        done = {job: finished(runs, (bname, job)) for job in JOBS_ORDER}
+        figures += backend_figures(bench, bname, ids, want, done)
         stars = sum(len(s) for s in want)
-        notes.append(f"{bname}: {len(ids):,} vertices, {stars:,} neighbours in all ({stars / len(ids):.2f} per vertex)")
+        rep.notes.append(f"{bname}: {len(ids):,} vertices, {stars:,} neighbours in all "
+                         f"({stars / len(ids):.2f} per vertex)")
 
-    print()
-    print(f"hestore one-ring read benchmark — {len(ids):,} random vertices (seed {args.seed}) of the stored "
-          f"{label} grid, {args.runs} run(s) of each figure, each in a fresh process")
-    print()
-    if figures:
-        print_figures(figures)
-    print("(time: the loop's total ÷ the vertices, a mean per vertex with the first call included, median of the runs;")
-    print(" p90: of the single calls of all runs; its CPU: the measuring process's user + system time per vertex,")
-    print(" without the database server's)")
-    if plans:
-        print()
-        print("The floor's query plan (SQLite: EXPLAIN QUERY PLAN, also of the query without its INDEXED BY;")
-        print("PostgreSQL: EXPLAIN):")
-        print_table(["backend", "query", "plan"], plans, "lll")
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  The floor runs on a fresh plain-driver connection per run: stdlib sqlite3 with hestore's pragmas (WAL,")
-    print("  synchronous=NORMAL, 64 MiB cache), psycopg in autocommit; every star is compared with the grid's known")
-    print("  neighbours, and hestore's neighbours with the floor's targets, as multisets, outside the timed loops.")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
-    if figures:
-        print_markdown(figures)
-    return problems
+    rep.title(f"hestore one-ring read benchmark — {len(ids):,} random vertices (seed {args.seed}) of the stored "
+              f"{label} grid, {args.runs} run(s) of each figure, each in a fresh process")
+    rep.figures(figures, after="""\
+(time: the loop's total ÷ the vertices, a mean per vertex with the first call included, median of the runs;
+ p90: of the single calls of all runs; its CPU: the measuring process's user + system time per vertex,
+ without the database server's)""")
+    rep.table("The floor's query plan (SQLite: EXPLAIN QUERY PLAN, also of the query without its INDEXED BY;\n"
+              "PostgreSQL: EXPLAIN):", ["backend", "query", "plan"], plans, "lll")
+    rep.close(ABOUT)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -71,53 +71,33 @@ of its own).
 
 With ``--profile over`` (the default) a repaired import over its target is
 run once more under cProfile and its top functions are printed.
+
+Run alone or by ``bench/all.py`` (``tests/test_bench.py`` runs it with
+``--quick``). This file keeps the workloads, the floors and the targets; the
+harness (``bench/harness/``) parses the options, runs each step in a fresh
+process on each backend and prints the report.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import shutil
-import sys
-import tempfile
-import time
 from typing import NamedTuple
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import numpy as np
 
-import numpy as np  # noqa: E402
+import hestore
+from hestore import io as formats
+from hestore.arrays import Ragged, ragged
+from hestore.build import build, orient
 
-import hestore  # noqa: E402
-from hestore import io as formats  # noqa: E402
-from hestore.arrays import Ragged, ragged  # noqa: E402
-from hestore.build import build, orient  # noqa: E402
-from _common import (  # noqa: E402
-    child_main,
-    Figure,
-    FILES,
-    fmt_mib,
-    fmt_time,
-    grid_arrays,
-    import_mesh,
-    maxrss,
-    median,
-    mesh_label,
-    open_backend,
-    Parser,
-    print_figures,
-    print_machine,
-    print_markdown,
-    print_profiles,
-    print_table,
-    Runner,
-    selected_backends,
-    selected_meshes,
-    settle,
-    timed,
-    timed_check,
-    url_of,
-    verdict,
-)
+from harness.bench import Bench
+from harness.cli import Parser, at_least, wants_profile
+from harness.databases import open_store, url_of
+from harness.runner import one_shot
+from harness.stats import finished, median_of
+from harness.tables import Figure, fmt_mib, fmt_time, verdict
+from harness.timing import maxrss, timed
+from workloads import FILES, MESHES, grid_arrays, grid_counts, import_mesh, mesh_label, present, timed_check
 
 TARGET_RATIO = 1.5
 REPAIR = {"on_error": "split", "orient": True}
@@ -126,6 +106,13 @@ LATTICE = 3  # duplicated triangles lie in cells this far apart, both ways
 QUICK = {"n": 100, "files": "small", "runs": 1, "duplicates": 100, "profile": "off"}
 SPLIT = 'on_error="split", orient=True'
 PLAIN = 'on_error="raise"'
+ABOUT = """\
+Gates: a repaired import of a clean input stores the plain import's counts and reports no repair,
+and its in-process build gives the plain build's arrays; the broken grid keeps every input polygon,
+flips back exactly the reversed triangles, copies each duplicate's three vertices once (the copies
+numbered on from the grid's vertices), cuts and skips nothing, and stores the expected counts; check()
+is empty after the first repaired import of each input. Target: ≤ 1.5× the plain import (issue 11),
+applied to the broken grid against the unbroken grid's plain import; no RSS target."""
 
 
 def files_of(spec: dict) -> dict[str, str]:
@@ -183,11 +170,6 @@ def _broken(spec: dict) -> Broken:
     return broken_grid(spec["n"], spec["reversed"], spec["duplicates"], spec["seed"])
 
 
-def grid_edges(n: int) -> int:
-    """Edges of the triangulated n×n grid: rows, columns and one diagonal per cell."""
-    return 2 * n * (n - 1) + (n - 1) ** 2
-
-
 def broken_gates(b: Broken, report, n: int) -> list[str]:
     """What the repaired import of the broken grid must report and store."""
     problems = []
@@ -210,9 +192,9 @@ def broken_gates(b: Broken, report, n: int) -> list[str]:
                         f"the duplicates' {len(copied):,} vertices copied once")
     if copies != list(range(v, v + 3 * d)):
         problems.append(f"the copies are not vertices {v:,}..{v + 3 * d - 1:,}")
-    if report.vertices != v + 3 * d or report.edges != grid_edges(n) + 3 * d:
+    if report.vertices != v + 3 * d or report.edges != grid_counts(n, n)[1] + 3 * d:
         problems.append(f"stored {report.vertices:,} vertices and {report.edges:,} edges; expected "
-                        f"{v + 3 * d:,} and {grid_edges(n) + 3 * d:,}")
+                        f"{v + 3 * d:,} and {grid_counts(n, n)[1] + 3 * d:,}")
     return problems
 
 
@@ -274,23 +256,17 @@ def job_import(spec: dict) -> dict:
     broken = _broken(spec) if variant == "broken" else None
     grid = grid_arrays(spec["n"]) if spec["mesh"] == "grid" and not broken else None  # arrays a user already has
     store = hestore.open(url_of(spec))
-    settle(spec)
-    rss0 = maxrss()
     if broken:
         def run():
             return store.import_arrays(spec["name"], broken.positions, broken.faces, **options)
     else:
         def run():
             return import_mesh(store, spec["mesh"], spec["n"], spec["dir"], grid, files=files_of(spec), **options)
-    done = timed(run, profile=spec.get("profile", False))
-    rss = maxrss()
-    report = done.result
+    report, out = one_shot(spec, run, profile=spec.get("profile", False))
     store.close()
-    out = {"seconds": done.seconds, "cpu": done.cpu, "rss": rss, "rss_before": rss0, "vertices": report.vertices,
-           "edges": report.edges, "polygons": report.polygons, "skipped": len(report.skipped),
-           "flipped": len(report.flipped), "split": len(report.split),
-           "copies": sum(len(c) for c in report.split.values()), "cut": len(report.cut),
-           "profile": [done.profile, done.dominant] if done.profile else None, "problems": []}
+    out.update(vertices=report.vertices, edges=report.edges, polygons=report.polygons, skipped=len(report.skipped),
+               flipped=len(report.flipped), split=len(report.split),
+               copies=sum(len(c) for c in report.split.values()), cut=len(report.cut), problems=[])
     if broken:
         out["input_polygons"] = len(broken.faces)
         out["reversed"] = len(broken.reversed)
@@ -299,7 +275,7 @@ def job_import(spec: dict) -> dict:
 
 
 def job_check(spec: dict) -> dict:
-    with contextlib.closing(hestore.open(url_of(spec))) as store:
+    with open_store(spec) as store:
         return timed_check(store, spec["name"])
 
 
@@ -311,83 +287,57 @@ JOBS = {"build": job_build, "import": job_import, "check": job_check}
 
 
 def main(argv=None) -> int:
-    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=True, children=True, seed=20240601,
-                workdir_help="where SQLite files go (default: a temporary folder, removed at the end)",
+    ap = Parser(__doc__, quick=QUICK, grid=710, meshes=MESHES, jobs=JOBS, seed=20240601,
                 profile="profile a repaired import in a separate run when it is over target (default), always, "
                         "or never")
-    ap.add_argument("--runs", type=int, default=3,
+    ap.add_argument("--runs", type=at_least(1), default=3,
                     help="runs of each import and in-process build, plain and repaired alternating (default 3); "
                          "the median is the figure")
     ap.add_argument("--reversed", type=float, default=0.1,
                     help="share of the broken grid's triangles reversed (default 0.1)")
-    ap.add_argument("--duplicates", type=int, default=1000,
+    ap.add_argument("--duplicates", type=at_least(0), default=1000,
                     help="interior triangles of the broken grid appended once more (default 1000)")
     ap.add_argument("--files", choices=("large", "small"), default="large",
                     help="the 1 M-face files (default), or small stand-ins from the same folder: "
                          + ", ".join(SMALL_FILES.values()))
     args = ap.parse_args(argv)
-    if args.child:
-        return child_main(JOBS, args.child)
-    backends = selected_backends(ap, args)
-    files = FILES if args.files == "large" else SMALL_FILES
-    only, skipped = selected_meshes(ap, args, files)
-    if args.runs < 1 or args.duplicates < 0 or not 0 <= args.reversed < 1:
-        ap.error("--runs must be at least 1, --duplicates at least 0, --reversed in [0, 1)")
+    only, missing = present(args.only, args.meshes_dir, files_of(vars(args)))
+    if not 0 <= args.reversed < 1:
+        ap.error("--reversed must be in [0, 1)")
     lattice = len(np.arange(1, args.n - 2, LATTICE)) ** 2
     if "grid" in only and args.duplicates > lattice:
         ap.error(f"--duplicates {args.duplicates}: the {args.n}×{args.n} grid has {lattice} cells to duplicate from")
 
-    own_workdir = args.workdir is None
-    workdir = args.workdir or tempfile.mkdtemp(prefix="hestore_bench_repair_")
-    os.makedirs(workdir, exist_ok=True)
-    runner = Runner(__file__, workdir, args.timeout)
     base = {"n": args.n, "dir": args.meshes_dir, "files": args.files, "reversed": args.reversed,
             "duplicates": args.duplicates, "seed": args.seed}
-    load_start = os.getloadavg()
-    t_start = time.perf_counter()
-
     builds: dict = {}  # (mesh, variant) -> [result per run]
     runs: dict = {}  # (backend, mesh, variant) -> [result per run]
     checks: dict = {}  # (backend, mesh, variant) -> result
-    profiles: list[tuple[str, str, str]] = []
-    pg_version = None
-    try:
+    with Bench(args, "repair", __file__, clean=("repair_", "result-")) as bench:
+        bench.report.skipped.extend(missing)
         for m in only:  # the repair decisions alone, without a database
             variants = variants_of(m)
             for r in range(args.runs):
                 for variant in variants if r % 2 == 0 else variants[::-1]:
-                    result = runner.run(job="build", mesh=m, variant=variant, run=r, what="in-process", **base)
+                    result = bench.runner.run(job="build", mesh=m, variant=variant, run=r, what="in-process", **base)
                     builds.setdefault((m, variant), []).append(result)
-        for bname in backends:
-            with open_backend(bname, workdir, args.pg_url, skipped) as place:
-                if place is None:
-                    continue
-                pg_version = place.version or pg_version
-                for m in only:
-                    variants = variants_of(m)
-                    for r in range(args.runs):
-                        for variant in variants if r % 2 == 0 else variants[::-1]:
-                            name = "broken" if variant == "broken" else m
-                            spec = dict(base, mesh=m, variant=variant, name=name, run=r,
-                                        **place.fresh(f"repair_{m}_{variant}"))
-                            result = runner.run(job="import", **spec)
-                            runs.setdefault((bname, m, variant), []).append(result)
-                            if r == 0 and variant != "plain" and result:
-                                checks[(bname, m, variant)] = runner.run(job="check", what="check()", **spec)
-                            place.drop(spec)
-                    profile_over(args, runner, place, base, bname, m, runs, profiles)
-    finally:
-        if own_workdir:
-            shutil.rmtree(workdir, ignore_errors=True)
-        else:
-            for name in os.listdir(workdir):
-                if name.startswith(("repair_", "result-")):
-                    with contextlib.suppress(OSError):
-                        os.remove(os.path.join(workdir, name))
-
-    problems = report(args, only, backends, builds, runs, checks, profiles, skipped, runner.errors)
-    print_machine(pg_version, load_start, time.perf_counter() - t_start, meshes=args.meshes_dir)
-    return 1 if problems else 0
+        for place in bench.for_each_backend():
+            bname = place.backend
+            for m in only:
+                variants = variants_of(m)
+                for r in range(args.runs):
+                    for variant in variants if r % 2 == 0 else variants[::-1]:
+                        name = "broken" if variant == "broken" else m
+                        spec = dict(base, mesh=m, variant=variant, name=name, run=r,
+                                    **place.fresh(f"repair_{m}_{variant}"))
+                        result = bench.runner.run(job="import", **spec)
+                        runs.setdefault((bname, m, variant), []).append(result)
+                        if r == 0 and variant != "plain" and result:
+                            checks[(bname, m, variant)] = bench.runner.run(job="check", what="check()", **spec)
+                        place.drop(spec)
+                profile_over(bench, place, base, m, runs)
+    report(bench, only, builds, runs, checks)
+    return bench.finish(meshes=args.meshes_dir)
 
 
 def variants_of(mesh: str) -> tuple[str, ...]:
@@ -395,32 +345,25 @@ def variants_of(mesh: str) -> tuple[str, ...]:
     return ("plain", "repair", "broken") if mesh == "grid" else ("plain", "repair")
 
 
-def _done(runs: dict, key: tuple) -> list[dict]:
-    return [r for r in runs.get(key, []) if r]
-
-
-def _median(results: list[dict], field: str = "seconds") -> float | None:
-    return median([r[field] for r in results]) if results else None
-
-
-def profile_over(args, runner: Runner, place, base: dict, bname: str, mesh: str, runs: dict, profiles: list) -> None:
+def profile_over(bench: Bench, place, base: dict, mesh: str, runs: dict) -> None:
     """A repaired import over its target (or every one, with ``--profile all``): once more under cProfile."""
+    args, bname = bench.args, place.backend
     if args.profile == "off":
         return
-    floor = _median(_done(runs, (bname, mesh, "plain")))
+    floor = median_of(finished(runs, (bname, mesh, "plain")))
     for variant in variants_of(mesh)[1:]:
-        t = _median(_done(runs, (bname, mesh, variant)))
-        if t is None or floor is None or (args.profile == "over" and t <= TARGET_RATIO * floor):
+        t = median_of(finished(runs, (bname, mesh, variant)))
+        if t is None or floor is None or not wants_profile(args, t > TARGET_RATIO * floor):
             continue
         name = "broken" if variant == "broken" else mesh
         spec = dict(base, mesh=mesh, variant=variant, name=name, profile=True, **place.fresh(f"repair_profile_{mesh}"))
-        prof = runner.run(job="import", **spec)
+        prof = bench.runner.run(job="import", **spec)
         place.drop(spec)
         if prof and prof.get("profile"):
-            text, dominant = prof["profile"]
-            profiles.append((f"{bname} {label_of(mesh, variant, base)}: import with {SPLIT} under cProfile "
-                             f"({prof['seconds']:.2f} s with the profiler on; median {t:.2f} s without, floor "
-                             f"{floor:.2f} s)", dominant, text))
+            bench.report.profiles.append((
+                f"{bname} {label_of(mesh, variant, base)}: import with {SPLIT} under cProfile ({prof['seconds']:.2f} s "
+                f"with the profiler on; median {t:.2f} s without, floor {floor:.2f} s)", prof["dominant"],
+                prof["profile"]))
 
 
 # ==========================================================================
@@ -431,27 +374,27 @@ def _what(mesh: str) -> str:
     return "import_arrays" if mesh == "grid" else "import_file"
 
 
-def import_figures(args, only, backends, runs) -> list[Figure]:
+def import_figures(args, only, runs) -> list[Figure]:
     """Per backend and input: the plain import (the floor) and each repaired one beside it."""
     out = []
-    for bname in backends:
+    for bname in args.backends:
         for m in only:
-            plain = _done(runs, (bname, m, "plain"))
-            floor = _median(plain)
+            plain = finished(runs, (bname, m, "plain"))
+            floor = median_of(plain)
             label = label_of(m, "plain", vars(args))
             if plain:
                 out.append(Figure(f"{_what(m)}, {PLAIN} (the floor)", bname, floor, mesh=label, n=len(plain),
-                                  cpu=_median(plain, "cpu"), rss=max(r["rss"] for r in plain)))
+                                  cpu=median_of(plain, "cpu"), rss=max(r["rss"] for r in plain)))
             for variant in variants_of(m)[1:]:
-                mine = _done(runs, (bname, m, variant))
+                mine = finished(runs, (bname, m, variant))
                 if not mine:
                     continue
-                t = _median(mine)
+                t = median_of(mine)
                 ok = None if floor is None else t <= TARGET_RATIO * floor
                 what = "the unbroken grid's plain import" if variant == "broken" else f"plain {_what(m)}"
                 target = f"≤ {TARGET_RATIO:g}× floor" + (" (applied)" if variant == "broken" else "")
                 out.append(Figure(f"{_what(m)}, {SPLIT}", bname, t, floor, target, verdict(ok),
-                                  label_of(m, variant, vars(args)), n=len(mine), cpu=_median(mine, "cpu"),
+                                  label_of(m, variant, vars(args)), n=len(mine), cpu=median_of(mine, "cpu"),
                                   rss=max(r["rss"] for r in mine),
                                   floor_parts=f"{what} {floor:.2f}" if floor is not None else "missing"))
     return out
@@ -461,61 +404,78 @@ def build_figures(args, only, builds) -> list[Figure]:
     """The repair decisions alone, in-process: orient(cut=True) + build(split=True) against build()."""
     out = []
     for m in only:
-        plain = _done(builds, (m, "plain"))
-        floor = _median(plain)
+        plain = finished(builds, (m, "plain"))
+        floor = median_of(plain)
         if plain:
             out.append(Figure("build() (the floor)", "in-process", floor, mesh=label_of(m, "plain", vars(args)),
-                              n=len(plain), cpu=_median(plain, "cpu"), rss=max(r["rss"] for r in plain)))
+                              n=len(plain), cpu=median_of(plain, "cpu"), rss=max(r["rss"] for r in plain)))
         for variant in variants_of(m)[1:]:
-            mine = _done(builds, (m, variant))
+            mine = finished(builds, (m, variant))
             if not mine:
                 continue
             what = "build() of the unbroken grid" if variant == "broken" else "build()"
-            out.append(Figure("orient(cut=True) + build(split=True)", "in-process", _median(mine), floor,
-                              mesh=label_of(m, variant, vars(args)), n=len(mine), cpu=_median(mine, "cpu"),
+            out.append(Figure("orient(cut=True) + build(split=True)", "in-process", median_of(mine), floor,
+                              mesh=label_of(m, variant, vars(args)), n=len(mine), cpu=median_of(mine, "cpu"),
                               rss=max(r["rss"] for r in mine),
                               floor_parts=f"{what} {floor:.2f}" if floor is not None else "missing"))
     return out
 
 
-def report(args, only, backends, builds, runs, checks, profiles, skipped, errors) -> list[str]:
-    problems = list(errors)
-    notes: list[str] = []
+def cost_rows(args, only, builds, runs) -> list[list[str]]:
+    """What the repair costs: its parts in-process, and the repaired import over the plain one on each backend."""
+    rows = []
+    for m in only:
+        floor = median_of(finished(builds, (m, "plain")))
+        for variant in variants_of(m)[1:]:
+            mine = finished(builds, (m, variant))
+            if not mine or floor is None:
+                continue
+            row = [label_of(m, variant, vars(args)), fmt_time(floor), fmt_time(median_of(mine, "orient")),
+                   fmt_time(median_of(mine, "split")), f"{median_of(mine) - floor:+.2f} s"]
+            for bname in args.backends:
+                mine_i, plain_i = finished(runs, (bname, m, variant)), finished(runs, (bname, m, "plain"))
+                row.append("—" if not mine_i or not plain_i else
+                           f"{median_of(mine_i) - median_of(plain_i):+.2f} s / "
+                           f"{median_of(mine_i, 'cpu') - median_of(plain_i, 'cpu'):+.2f} s")
+            rows.append(row)
+    return rows
+
+
+def gates(bench: Bench, only, builds, runs, checks) -> None:
+    """The correctness gates over every step's result, and the notes on what each import stored."""
+    args, rep = bench.args, bench.report
     spec = vars(args)
     for (m, variant), results in builds.items():
         for b in results:
             if b:
-                problems.extend(f"{label_of(m, variant, spec)}, in-process: {p}" for p in b["problems"])
+                rep.problems.extend(f"{label_of(m, variant, spec)}, in-process: {p}" for p in b["problems"])
     for (bname, m, variant), results in runs.items():
         label = label_of(m, variant, spec)
-        for r in results:
-            if r:
-                problems.extend(f"{bname} {label}: {p}" for p in r["problems"])
+        done = [r for r in results if r]
+        for r in done:
+            rep.problems.extend(f"{bname} {label}: {p}" for p in r["problems"])
         if variant == "repair":
-            plain = _done(runs, (bname, m, "plain"))
-            for r in (r for r in results if r):
+            plain = finished(runs, (bname, m, "plain"))
+            for r in done:
                 counts = [r["vertices"], r["edges"], r["polygons"]]
                 for p in plain:
                     if [p["vertices"], p["edges"], p["polygons"]] != counts:
-                        problems.append(f"{bname} {label}: the repaired import stored V/E/F "
-                                        f"{'/'.join(map(str, counts))}, the plain one "
-                                        f"{p['vertices']}/{p['edges']}/{p['polygons']}")
+                        rep.problems.append(f"{bname} {label}: the repaired import stored V/E/F "
+                                            f"{'/'.join(map(str, counts))}, the plain one "
+                                            f"{p['vertices']}/{p['edges']}/{p['polygons']}")
                         break
                 repairs = {k: r[k] for k in ("split", "cut", "flipped", "skipped") if r[k]}
                 if repairs:
-                    problems.append(f"{bname} {label}: the repaired import of a clean input reported repairs: "
-                                    + ", ".join(f"{k} {v}" for k, v in repairs.items()))
-            done = [r for r in results if r]
+                    rep.problems.append(f"{bname} {label}: the repaired import of a clean input reported repairs: "
+                                        + ", ".join(f"{k} {v}" for k, v in repairs.items()))
             if done:
                 r = done[0]
-                notes.append(f"{bname} {label}: the repaired import stored {r['vertices']:,} vertices, "
-                             f"{r['edges']:,} edges, {r['polygons']:,} polygons; split {r['split']}, cut {r['cut']}, "
-                             f"flipped {r['flipped']}, skipped {r['skipped']} (first run)")
-        if variant == "broken":
-            done = [r for r in results if r]
-            if done:
-                r = done[0]
-                notes.append(f"{bname} {label}: {r['input_polygons']:,} input polygons ({r['reversed']:,} reversed, "
+                rep.notes.append(f"{bname} {label}: the repaired import stored {r['vertices']:,} vertices, "
+                                 f"{r['edges']:,} edges, {r['polygons']:,} polygons; split {r['split']}, cut "
+                                 f"{r['cut']}, flipped {r['flipped']}, skipped {r['skipped']} (first run)")
+        if variant == "broken" and done:
+            r = done[0]
+            rep.notes.append(f"{bname} {label}: {r['input_polygons']:,} input polygons ({r['reversed']:,} reversed, "
                              f"{args.duplicates:,} duplicates appended) → {r['polygons']:,} stored, "
                              f"{r['flipped']:,} flipped back, {r['split']:,} vertices copied into {r['copies']:,} "
                              f"copies, {r['cut']} edges cut, {r['skipped']} skipped; stored {r['vertices']:,} "
@@ -524,81 +484,46 @@ def report(args, only, backends, builds, runs, checks, profiles, skipped, errors
         label = label_of(m, variant, spec)
         if not c:
             continue
-        first = _done(runs, (bname, m, variant))
-        notes.append(f"{bname} {label}: mesh.check() after the first repaired import {c['seconds']:.2f} s, "
-                     f"{c['violations']} violation(s)")
+        first = finished(runs, (bname, m, variant))
+        rep.notes.append(f"{bname} {label}: mesh.check() after the first repaired import {c['seconds']:.2f} s, "
+                         f"{c['violations']} violation(s)")
         if c["violations"]:
-            problems.append(f"{bname} {label}: check() found {c['violations']} violations, e.g. {c['examples']}")
+            rep.problems.append(f"{bname} {label}: check() found {c['violations']} violations, e.g. {c['examples']}")
         if first and [c["counts"][k] for k in (0, 2, 3)] != [first[0][k] for k in ("vertices", "edges", "polygons")]:
-            problems.append(f"{bname} {label}: counts() {c['counts']} differ from the import report's")
-    for bname in backends:
+            rep.problems.append(f"{bname} {label}: counts() {c['counts']} differ from the import report's")
+    for bname in args.backends:
         for m in only:
             for variant in variants_of(m):
-                done = _done(runs, (bname, m, variant))
+                done = finished(runs, (bname, m, variant))
                 if done:
                     each = ", ".join(f"{r['seconds']:.2f}" for r in done)
                     rss = ", ".join(fmt_mib(r["rss"]) for r in done)
-                    notes.append(f"{bname} {label_of(m, variant, spec)}: {variant} import, each run (s): {each}; "
-                                 f"peak RSS {rss}")
+                    rep.notes.append(f"{bname} {label_of(m, variant, spec)}: {variant} import, each run (s): {each}; "
+                                     f"peak RSS {rss}")
 
-    figures = import_figures(args, only, backends, runs)
+
+def report(bench: Bench, only, builds, runs, checks) -> None:
+    args, rep = bench.args, bench.report
+    gates(bench, only, builds, runs, checks)
+    rep.title(f"hestore repair benchmark — imports with {SPLIT} against the plain import ({PLAIN}) of the same "
+              f"input; {args.runs} run(s) of each, each in a fresh process into a fresh database")
+    rep.figures(import_figures(args, only, runs), after="""\
+(time: one import, commit included, the median of the runs (n); floor: the plain import's median; its CPU:
+ the median user + system time of the importing process alone, without the database server's; peak RSS:
+ the largest of the runs', ru_maxrss of the importing process)""")
     parts = build_figures(args, only, builds)
-    print()
-    print(f"hestore repair benchmark — imports with {SPLIT} against the plain import ({PLAIN}) of the same input; "
-          f"{args.runs} run(s) of each, each in a fresh process into a fresh database")
-    print()
-    if figures:
-        print_figures(figures)
-    print("(time: one import, commit included, the median of the runs (n); floor: the plain import's median; its CPU:")
-    print(" the median user + system time of the importing process alone, without the database server's; peak RSS:")
-    print(" the largest of the runs', ru_maxrss of the importing process)")
-
+    rep.figures(parts, caption="""\
+Repair decisions alone, in-process, no database (time: the median of the runs (n), each the first call
+in a fresh process, as in an import; the floor is build() of the same clean input — for the broken
+grid, of the unbroken grid — as the plain import runs it):""")
     if parts:
-        print()
-        print("Repair decisions alone, in-process, no database (time: the median of the runs (n), each the first call")
-        print("in a fresh process, as in an import; the floor is build() of the same clean input — for the broken")
-        print("grid, of the unbroken grid — as the plain import runs it):")
-        print_figures(parts)
-        rows = []
-        for m in only:
-            floor = _median(_done(builds, (m, "plain")))
-            for variant in variants_of(m)[1:]:
-                mine = _done(builds, (m, variant))
-                if not mine or floor is None:
-                    continue
-                row = [label_of(m, variant, spec), fmt_time(floor), fmt_time(_median(mine, "orient")),
-                       fmt_time(_median(mine, "split")), f"{_median(mine) - floor:+.2f} s"]
-                for bname in backends:
-                    mine_i, plain_i = _done(runs, (bname, m, variant)), _done(runs, (bname, m, "plain"))
-                    row.append("—" if not mine_i or not plain_i else
-                               f"{_median(mine_i) - _median(plain_i):+.2f} s / "
-                               f"{_median(mine_i, 'cpu') - _median(plain_i, 'cpu'):+.2f} s")
-                rows.append(row)
-        print()
-        print("What the repair costs: its parts (medians), and the repaired import's time over the plain import's on")
-        print("each backend (medians; wall clock / the importing process's CPU):")
-        print_table(["input", "build()", "orient(cut=True)", "build(split=True)", "repair − build()",
-                     *(f"{b}: repaired − plain import" for b in backends)], rows, "l" + "r" * (4 + len(backends)))
-
-    print_profiles("Profiles of the repaired imports over their target:", profiles)
-    print()
-    print("Correctness and notes:")
-    for n in notes:
-        print(f"  {n}")
-    print("  Gates: a repaired import of a clean input stores the plain import's counts and reports no repair,")
-    print("  and its in-process build gives the plain build's arrays; the broken grid keeps every input polygon,")
-    print("  flips back exactly the reversed triangles, copies each duplicate's three vertices once (the copies")
-    print("  numbered on from the grid's vertices), cuts and skips nothing, and stores the expected counts; check()")
-    print("  is empty after the first repaired import of each input. Target: ≤ 1.5× the plain import (issue 11),")
-    print("  applied to the broken grid against the unbroken grid's plain import; no RSS target.")
-    for s in skipped:
-        print(f"  SKIPPED {s}")
-    for p in problems:
-        print(f"  PROBLEM {p}")
-    if figures or parts:
-        print_markdown(figures + parts)
-    return problems
+        rep.table("What the repair costs: its parts (medians), and the repaired import's time over the plain import's "
+                  "on\neach backend (medians; wall clock / the importing process's CPU):",
+                  ["input", "build()", "orient(cut=True)", "build(split=True)", "repair − build()",
+                   *(f"{b}: repaired − plain import" for b in args.backends)],
+                  cost_rows(args, only, builds, runs), "l" + "r" * (4 + len(args.backends)))
+    rep.close(ABOUT, profiles="Profiles of the repaired imports over their target:")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())
