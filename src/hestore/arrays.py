@@ -1,16 +1,20 @@
 """The array vocabulary: a mesh's topology as numpy columns, and the helpers on them.
 
-This module owns the one in-memory form every set-based part of hestore
-speaks: `TopologyArrays` (the four tables as int64 columns, NULL as -1),
-`Ragged` (polygon soups), and the numpy building blocks that work on them —
-mapping ids to rows (`Index`), labelling the cycles of a function
-(`cycles`, `cycle_positions`), runs of equal keys (`run_starts`,
-`run_heads`, `cyclic_next`, `groups`), dense numbering (`dense`), walking
-polygon loops (`polygon_loops`) and position columns (`positions`).
-`hestore.build` makes `TopologyArrays`, `hestore.validation` checks them,
-`hestore.summary`, `hestore.graphs` and `hestore.bulk` read them from the
-store, so a freshly built import can be validated in memory before anything
-is written.
+This module owns `TopologyArrays` (the four tables as int64 columns, NULL as
+-1), the currency of building and checking: `hestore.build` makes them,
+`hestore.bulk` writes them as an import, and `hestore.validation` reads a
+stored mesh into them and checks them, so a freshly built import can be
+validated in memory before anything is written. It owns `Ragged` (polygon
+soups), the one integer coercion of index arrays (`as_integers`), and the
+numpy building blocks every set-based module shares — mapping ids to rows
+(`Index`: every id → row mapping of hestore goes through it), labelling the
+cycles of a function (`cycles`, `restricted_cycles` for walks kept within
+groups, `cycle_positions`), runs of equal keys (`run_starts`, `run_heads`,
+`cyclic_next`, `groups`), dense numbering (`dense`), walking polygon loops
+(`polygon_halfedges`, `polygon_loops`) and position columns (`positions`).
+`hestore.summary`, `hestore.render`, `hestore.graphs` and the exports of
+`hestore.bulk` read only the columns they need into records of their own,
+and use these building blocks on them.
 
 Nothing here knows SQL or handles, and nothing builds a Python object per
 element.
@@ -46,8 +50,10 @@ __all__ = [
     "TopologyArrays",
     "Ragged",
     "ragged",
+    "as_integers",
     "Index",
     "cycles",
+    "restricted_cycles",
     "component_roots",
     "cycle_positions",
     "run_starts",
@@ -212,18 +218,42 @@ def _as_indices(a) -> np.ndarray:
         return np.zeros(0, dtype=I64)
     if a.dtype.kind == "b":
         raise InvalidInputError("polygon vertex indices must be integers, not booleans")
-    if a.dtype.kind in "iu":
-        if a.dtype.kind == "u" and a.dtype.itemsize == 8 and (a > np.iinfo(I64).max).any():
-            raise InvalidInputError("a polygon vertex index is larger than any vertex count")
-        return a.astype(I64, copy=False)
-    if a.dtype.kind == "f":
-        with np.errstate(invalid="ignore"):
-            integral = np.isfinite(a) & (a == np.round(a)) & (np.abs(a) < 2.0**62)
-        if integral.all():
-            return a.astype(I64)
+    found = as_integers(a)
+    if found is not None:
+        return found
+    if a.dtype.kind == "u":
+        raise InvalidInputError("a polygon vertex index is larger than any vertex count")
     raise InvalidInputError(
         f"polygon vertex indices must be integers, got {a.dtype} values such as {shown(a.reshape(-1)[:3].tolist())}"
     )
+
+
+def as_integers(values: np.ndarray) -> np.ndarray | None:
+    """Integer-valued numbers as int64, or None unless every one is an integer that int64 holds.
+
+    The one integer coercion of arrays: integer arrays convert as they are
+    (a uint64 beyond int64's range is None); floats must be finite whole
+    numbers of magnitude below 2**63. Booleans and other dtypes are None.
+    Callers say what was wrong in their own words (`ragged` refuses, the
+    file readers of `hestore.io` call the file malformed).
+
+    Examples
+    --------
+    >>> as_integers(np.array([3.0, -1.0])).tolist(), as_integers(np.array([0.5])), as_integers(np.array([2.0**63]))
+    ([3, -1], None, None)
+    >>> as_integers(np.array([2**64 - 1], dtype=np.uint64)) is None
+    True
+    """
+    values = np.asarray(values)
+    if values.dtype.kind in "iu":
+        if values.dtype == np.uint64 and values.size and values.max() > np.iinfo(I64).max:
+            return None
+        return values.astype(I64, copy=False)
+    if values.dtype.kind == "f":
+        with np.errstate(invalid="ignore"):
+            whole = np.isfinite(values) & (values == np.floor(values)) & (np.abs(values) < 2.0**63)
+        return values.astype(I64) if whole.all() else None
+    return None
 
 
 class Index:
@@ -290,6 +320,17 @@ class Index:
         rows[order] = found
         ok[order] = hit
         return rows, ok
+
+    def get(self, refs: np.ndarray) -> np.ndarray:
+        """Row of each reference, -1 where it names nothing.
+
+        Examples
+        --------
+        >>> Index(np.array([2, 5, 9])).get(np.array([9, 3, 2])).tolist()
+        [2, -1, 0]
+        """
+        rows, ok = self.find(refs)
+        return np.where(ok, rows, -1)
 
     def rows(self, refs: np.ndarray, *, kind: str, owners: np.ndarray, owner_kind: str, column: str) -> np.ndarray:
         """Row of each reference, all of which must exist.
@@ -358,6 +399,54 @@ def cycles(f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     on_cycle = np.zeros(n, dtype=bool)
     on_cycle[jump] = True
     return label, on_cycle, np.where(on_cycle, np.arange(n, dtype=I64), jump)
+
+
+def restricted_cycles(step: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Label the cycles of ``step`` walked only within a group: `cycles` of the restricted function.
+
+    Element ``i`` steps to ``step[i]`` when both lie in one group
+    (``group[step[i]] == group[i] >= 0``) and stays where it is otherwise:
+    a walk stops where it would leave its group. An element of no group
+    (``group[i] < 0``) is a fixed point nothing steps to, so only the
+    elements of groups are walked — the few free half-edges of a mesh with a
+    small boundary cost no more than their number. Polygon loops (``next``
+    within a polygon), the rotation around a vertex (``next(twin(h))``
+    within an origin) and boundary loops (``next`` among free half-edges)
+    are such walks.
+
+    Parameters
+    ----------
+    step : ndarray of int
+        A function on ``range(n)``: each element's successor.
+    group : ndarray of int
+        Each element's group, negative for none.
+
+    Returns
+    -------
+    rows : ndarray
+        The elements of groups, ascending; the other elements are cycles of
+        their own.
+    f : ndarray
+        Per entry of ``rows``, the position in ``rows`` it steps to (its own
+        where it stays).
+    label, on_cycle, end : ndarray
+        What `cycles` returns for ``f``: positions in ``rows``.
+
+    Examples
+    --------
+    The walk 0 -> 1 -> 2 -> 0 within group 7; 4 would step to 0, in another
+    group, and 3 is in none:
+
+    >>> rows, f, label, on_cycle, end = restricted_cycles(np.array([1, 2, 0, 0, 0]), np.array([7, 7, 7, -1, 8]))
+    >>> rows.tolist(), f.tolist(), label.tolist(), on_cycle.tolist()
+    ([0, 1, 2, 4], [1, 2, 0, 3], [0, 0, 0, 3], [True, True, True, True])
+    """
+    grouped = group >= 0
+    rows = np.flatnonzero(grouped)
+    position = np.cumsum(grouped) - 1  # of each element of a group in ``rows``: those before it
+    to = step[rows]
+    f = np.where(group[to] == group[rows], position[to], np.arange(len(rows), dtype=I64))
+    return (rows, f, *cycles(f))
 
 
 def cycle_positions(f: np.ndarray, label: np.ndarray) -> np.ndarray:
@@ -551,8 +640,9 @@ def polygon_halfedges(he_id: np.ndarray, he_next: np.ndarray, p_halfedge: np.nda
     ([0, 2, 4], [2, 0, 1, 3])
     """
     # Rows instead of ids: ids are never reused, so after deletions they have gaps.
-    next_row = np.searchsorted(he_id, he_next)
-    start = np.searchsorted(he_id, p_halfedge)
+    halfedges = Index(he_id)
+    next_row = halfedges.find(he_next)[0]
+    start = halfedges.find(p_halfedge)[0]
     steps_h, steps_p = [], []
     cur = start.copy()
     active = np.arange(len(p_halfedge))
@@ -594,7 +684,7 @@ def polygon_loops(
         ``p_halfedge[i]`` (see `polygon_halfedges`).
     """
     loops = polygon_halfedges(he_id, he_next, p_halfedge)
-    origin_row = np.searchsorted(v_id, he_origin)
+    origin_row = Index(v_id).find(he_origin)[0]
     return Ragged(loops.offsets, origin_row[loops.indices])
 
 

@@ -43,6 +43,7 @@ from hestore import io as mesh_io
 from hestore import properties as props
 from hestore import schema, values
 from hestore.arrays import (
+    Index,
     Ragged,
     TopologyArrays,
     cycle_positions,
@@ -531,7 +532,7 @@ def _soup(ref: MeshRef) -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
             [position_request(), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])]
         )
     loops = polygon_halfedges(h_id, h_next, p_he)
-    corners = Ragged(loops.offsets, np.searchsorted(v_id, h_origin[loops.indices]))
+    corners = Ragged(loops.offsets, Index(v_id).find(h_origin[loops.indices])[0])
     return position_array(vx, vy, vz, v_missing), corners, v_id, h_id[loops.indices]
 
 
@@ -579,17 +580,19 @@ def dual(ref: MeshRef) -> tuple[np.ndarray, Ragged]:
             (("halfedge", first),),
         )
     positions = position_array(vx, vy, vz, v_missing)
-    corner_vertex = np.searchsorted(v_id, h_origin)
+    # Rows of references, each of which exists on a valid mesh (`check` reports any other).
+    corner_vertex = Index(v_id).find(h_origin)[0]
     if np.isnan(positions[corner_vertex]).any():
         raise InvalidInputError(f"mesh {ref.name!r} has polygon corners without a position: the dual needs them")
     # Dual vertices: polygon centroids (a polygon's corners are its half-edges' origins).
-    poly = np.searchsorted(p_id, h_polygon)
+    poly = Index(p_id).find(h_polygon)[0]
     degree = np.bincount(poly, minlength=len(p_id))
     centroids = np.stack(
         [np.bincount(poly, weights=positions[corner_vertex, k], minlength=len(p_id)) / degree for k in range(3)], axis=1
     )
     # Dual polygons: the cycles of onext(h) = twin(prev(h)), counter-clockwise around each origin.
-    onext = np.searchsorted(h_id, h_twin[np.searchsorted(h_id, h_prev)])
+    halfedges = Index(h_id)
+    onext = halfedges.find(h_twin[halfedges.find(h_prev)[0]])[0]
     label, _on_cycle, _end = cycles(onext)
     step = cycle_positions(onext, label)
     order = np.lexsort((step, label, h_origin[label]))
@@ -703,6 +706,6 @@ def _export_data(ref: MeshRef, fmt: str, corner_halfedges: np.ndarray) -> FileDa
             if prop is None or prop.dtype != "float64" or prop.shape != (width,):
                 continue
             ids, array = props.property_array(ref, "halfedge", name)
-            at = np.searchsorted(ids, corner_halfedges)
+            at = Index(ids).find(corner_halfedges)[0]
             data.corner[name] = _filled(array)[at] if len(ids) else np.full((0, width), np.nan)
     return data

@@ -552,8 +552,7 @@ def _attributes(snap, ref: MeshRef, kind: str, plan: _Plan, columns: list) -> _A
             vertices = columns[-1] if kind == "dual" else columns[0]
             origin = _origin_rows(vertices[0], h_id, h_origin)
             if kind == "halfedge":
-                twin = _rows(h_id, h_twin, "half-edge", h_id, "halfedge", "twin")
-                edges.append(_length_column(vertices, origin, origin[twin]))
+                edges.append(_length_column(vertices, origin, origin[_twin_rows(h_id, h_twin)]))
             else:
                 _h0, _h1, r0, r1 = _edge_ends(h_id, h_twin, *columns[2])
                 edges.append(_length_column(vertices, origin[r0], origin[r1]))
@@ -562,7 +561,7 @@ def _attributes(snap, ref: MeshRef, kind: str, plan: _Plan, columns: list) -> _A
             h_edge = halfedges[3]
             edge_ids = np.unique(h_edge)
             column = _property_column(snap, ref, item, edge_ids)
-            edges.append(column.take(np.searchsorted(edge_ids, h_edge)))
+            edges.append(column.take(Index(edge_ids).find(h_edge)[0]))
         else:
             edges.append(_property_column(snap, ref, item, h_id if kind == "halfedge" else columns[2][0]))
     return _Attributes(nodes, tuple(edges))
@@ -631,11 +630,6 @@ def _gc_paused() -> Iterator[None]:
     finally:
         if enabled:
             gc.enable()
-
-
-def _rows(ids: np.ndarray, refs: np.ndarray, kind: str, owners: np.ndarray, owner_kind: str, column: str) -> np.ndarray:
-    """Row of each of ``refs`` in the sorted ``ids``; one that is not there is a ``REF`` violation."""
-    return Index(ids).rows(refs, kind=kind, owners=owners, owner_kind=owner_kind, column=column)
 
 
 def _or_none(values: np.ndarray) -> list:
@@ -753,17 +747,27 @@ def _undirected(
 # --------------------------------------------------------------------------
 # The four kinds
 
+#: How a ``REF`` violation names a missing half-edge.
+_HALF_EDGE = schema.KINDS["halfedge"].label
+
 
 def _edge_ends(h_id, h_twin, e_id, e_he):
     """Per edge: its half-edge ``h0`` and twin ``h1``, and their rows in the half-edge columns."""
-    r0 = _rows(h_id, e_he, "half-edge", e_id, "edge", "halfedge")
+    halfedges = Index(h_id)
+    r0 = halfedges.rows(e_he, kind=_HALF_EDGE, owners=e_id, owner_kind="edge", column="halfedge")
     h1 = h_twin[r0]
-    r1 = _rows(h_id, h1, "half-edge", e_he, "halfedge", "twin")
+    r1 = halfedges.rows(h1, kind=_HALF_EDGE, owners=e_he, owner_kind="halfedge", column="twin")
     return e_he, h1, r0, r1
 
 
 def _origin_rows(v_id, h_id, h_origin) -> np.ndarray:
-    return _rows(v_id, h_origin, "vertex", h_id, "halfedge", "origin")
+    """Each half-edge's origin as a vertex row; a missing vertex is a ``REF`` violation."""
+    return Index(v_id).rows(h_origin, kind="vertex", owners=h_id, owner_kind="halfedge", column="origin")
+
+
+def _twin_rows(h_id, h_twin) -> np.ndarray:
+    """Each half-edge's twin as a half-edge row; a missing one is a ``REF`` violation."""
+    return Index(h_id).rows(h_twin, kind=_HALF_EDGE, owners=h_id, owner_kind="halfedge", column="twin")
 
 
 def _multigraph(vertices, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.MultiGraph:
@@ -802,8 +806,9 @@ def _dual(polygons, halfedges, edges, extra: _Attributes = _NO_ATTRIBUTES) -> nx
     h0, h1, r0, r1 = _edge_ends(h_id, h_twin, *edges)
     inner = np.flatnonzero((h_polygon[r0] >= 0) & (h_polygon[r1] >= 0))
     h0, h1, r0, r1, e_id = h0[inner], h1[inner], r0[inner], r1[inner], edges[0][inner]
-    left = _rows(p_id, h_polygon[r0], "polygon", h0, "halfedge", "polygon")
-    right = _rows(p_id, h_polygon[r1], "polygon", h1, "halfedge", "polygon")
+    polygons = Index(p_id)
+    left = polygons.rows(h_polygon[r0], kind="polygon", owners=h0, owner_kind="halfedge", column="polygon")
+    right = polygons.rows(h_polygon[r1], kind="polygon", owners=h1, owner_kind="halfedge", column="polygon")
     o0, o1 = h_origin[r0], h_origin[r1]
 
     def data(order):
@@ -821,7 +826,7 @@ def _halfedge(vertices, halfedges, extra: _Attributes = _NO_ATTRIBUTES) -> nx.Mu
     _apply(attrs, extra.nodes)
     h_id, h_origin, h_twin, h_edge, h_polygon = halfedges
     origin = _origin_rows(vertices[0], h_id, h_origin)
-    target = origin[_rows(h_id, h_twin, "half-edge", h_id, "halfedge", "twin")]
+    target = origin[_twin_rows(h_id, h_twin)]
     order, a, b, keys, first = _groups(origin, target, h_id)
     data = [
         {"polygon": p, "edge": e, "twin": t}

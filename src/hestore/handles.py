@@ -19,10 +19,11 @@ from typing import Any
 
 from hestore import navigation as nav
 from hestore import properties as props
+from hestore import schema
 from hestore.errors import ElementNotFoundError, shown
 from hestore.values import check_integer
 
-__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "element_id", "wrap"]
+__all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "CLASSES", "element_id", "wrap"]
 
 _ID_MIN, _ID_MAX = -(2**63), 2**63 - 1
 _set = object.__setattr__
@@ -89,7 +90,7 @@ class Handle:
     def __reduce__(self):
         raise TypeError(f"{type(self).__name__} handles are bound to an open store; pickle .id instead")
 
-    #: The element kind, as property kinds name it.
+    #: The element kind: its key in `hestore.schema.KINDS` (`CLASSES` maps it back to the class).
     kind: str = ""
 
     def __getitem__(self, name: str):
@@ -103,6 +104,21 @@ class Handle:
     def __delitem__(self, name: str) -> None:
         """Unset the element's value of property ``name`` (back to the default)."""
         props.set_value(self.mesh.ref, self.kind, self.id, name, None)
+
+
+#: The handle class of each element kind, by its key in `hestore.schema.KINDS` (each class registers itself).
+CLASSES: dict[str, type[Handle]] = {}
+
+
+def _of_kind(name: str):
+    """Register a handle class as the one of element kind ``name``, a key of `hestore.schema.KINDS`."""
+
+    def register(cls: type[Handle]) -> type[Handle]:
+        cls.kind = schema.KINDS[name].name
+        CLASSES[name] = cls
+        return cls
+
+    return register
 
 
 _new = object.__new__
@@ -126,6 +142,7 @@ def wrap(cls: type, mesh: Any, i: int) -> Handle:
     return h
 
 
+@_of_kind("vertex")
 class Vertex(Handle):
     """A vertex of a mesh.
 
@@ -140,7 +157,6 @@ class Vertex(Handle):
     """
 
     __slots__ = ()
-    kind = "vertex"
 
     @property
     def halfedge(self) -> "HalfEdge | None":
@@ -196,6 +212,7 @@ class Vertex(Handle):
         return [wrap(Polygon, m, r[polygon]) for r in nav.star(m.ref, self.id) if r[polygon] is not None]
 
 
+@_of_kind("halfedge")
 class HalfEdge(Handle):
     """A directed half of an edge; its polygon lies to its left.
 
@@ -215,7 +232,6 @@ class HalfEdge(Handle):
     """
 
     __slots__ = ()
-    kind = "halfedge"
 
     def _record(self) -> tuple:
         return nav.halfedge_record(self.mesh.ref, self.id)
@@ -311,6 +327,7 @@ class HalfEdge(Handle):
     is_border = is_boundary
 
 
+@_of_kind("edge")
 class Edge(Handle):
     """An undirected edge: a pair of twin half-edges.
 
@@ -325,7 +342,6 @@ class Edge(Handle):
     """
 
     __slots__ = ()
-    kind = "edge"
 
     def _row(self) -> tuple:
         return nav.edge_row(self.mesh.ref, self.id)
@@ -368,6 +384,7 @@ class Edge(Handle):
         return [wrap(Polygon, self.mesh, p) for p in (row[4], row[5]) if p is not None]
 
 
+@_of_kind("polygon")
 class Polygon(Handle):
     """A polygon (face): a loop of half-edges, counter-clockwise.
 
@@ -384,7 +401,6 @@ class Polygon(Handle):
     """
 
     __slots__ = ()
-    kind = "polygon"
 
     @property
     def halfedge(self) -> HalfEdge:

@@ -30,7 +30,6 @@ __all__ = [
     "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of",
 ]
 
-_ELEMENT_TABLES = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
 _VALUE_TABLES = [t.name for t in schema.VALUE_TABLES]
 
 
@@ -88,8 +87,8 @@ class Diff:
 def diff_of(versions: dict) -> Diff:
     """A `Diff` from `hestore.session.Session.versions`'s rows at the two revisions."""
     created, removed, changed = ({k: set() for k in KINDS} for _ in range(3))
-    for table, kind in _ELEMENT_TABLES.items():
-        before, after = ({row[0]: row for row in rows} for rows in versions[table])
+    for kind in KINDS:
+        before, after = ({row[0]: row for row in rows} for rows in versions[schema.KINDS[kind].table.name])
         created[kind] = set(after) - set(before)
         removed[kind] = set(before) - set(after)
         changed[kind] = {i for i in set(before) & set(after) if before[i] != after[i]}

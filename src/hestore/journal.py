@@ -33,8 +33,8 @@ __all__ = [
     "restore_statements", "created_changes", "COUNTED", "COUNTERS", "restored",
 ]
 
-#: The element kinds of SPEC §4.1's ``changes``.
-KINDS = ("vertex", "halfedge", "edge", "polygon")
+#: The element kinds of SPEC §4.1's ``changes``: those of `hestore.schema.KINDS`.
+KINDS = tuple(schema.KINDS)
 
 
 def created_changes(vertices: int, halfedges: int, edges: int, polygons: int) -> str:

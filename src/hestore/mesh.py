@@ -42,7 +42,7 @@ from hestore.errors import (
     Violation,
     shown,
 )
-from hestore.handles import Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
+from hestore.handles import CLASSES, Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
 from hestore.values import Property
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
@@ -52,8 +52,6 @@ if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
 
 __all__ = ["Mesh", "Counts"]
-
-_KIND_OF = {"vertex": Vertex, "halfedge": HalfEdge, "edge": Edge, "polygon": Polygon}
 
 
 @dataclass(frozen=True)
@@ -177,7 +175,7 @@ class Mesh:
             with (self.session.dry_run if dry_run else self.session.editing)(self.ref) as uow:
                 yield uow
         except TopologyError as exc:
-            exc.elements = tuple(_KIND_OF[kind](self, i) for kind, i in exc.refs if kind in _KIND_OF)
+            exc.elements = tuple(CLASSES[kind](self, i) for kind, i in exc.refs if kind in CLASSES)
             raise
 
     def _fetch(self, key: str, build) -> list[tuple]:
@@ -309,10 +307,10 @@ class Mesh:
 
     # -- lookup and iteration -----------------------------------------------
 
-    def _lookup(self, kind: type, what: str, i: object) -> Handle:
-        i = element_id(i, what)  # refuses what cannot be an id
-        navigation.exists(self.ref, what, i)
-        return wrap(kind, self, i)
+    def _lookup(self, kind: str, i: object) -> Handle:
+        i = element_id(i, schema.KINDS[kind].label)  # refuses what cannot be an id
+        navigation.exists(self.ref, kind, i)
+        return wrap(CLASSES[kind], self, i)
 
     def vertex(self, id: int) -> Vertex:
         """The vertex with this id (`ElementNotFoundError` if there is none).
@@ -329,19 +327,19 @@ class Mesh:
         ...
         hestore.errors.ElementNotFoundError: vertex 1 does not exist in mesh 'm' (removed, or never created)
         """
-        return self._lookup(Vertex, "vertex", id)
+        return self._lookup("vertex", id)
 
     def halfedge(self, id: int) -> HalfEdge:
         """The half-edge with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(HalfEdge, "half-edge", id)
+        return self._lookup("halfedge", id)
 
     def edge(self, id: int) -> Edge:
         """The edge with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(Edge, "edge", id)
+        return self._lookup("edge", id)
 
     def polygon(self, id: int) -> Polygon:
         """The polygon with this id (`ElementNotFoundError` if there is none)."""
-        return self._lookup(Polygon, "polygon", id)
+        return self._lookup("polygon", id)
 
     def vertices(self) -> Iterator[Vertex]:
         """All vertices, in id order."""
@@ -349,7 +347,7 @@ class Mesh:
 
     def halfedges(self) -> Iterator[HalfEdge]:
         """All half-edges, in id order."""
-        return (HalfEdge(self, i) for i in navigation.ids(self.ref, "half-edge"))
+        return (HalfEdge(self, i) for i in navigation.ids(self.ref, "halfedge"))
 
     def edges(self) -> Iterator[Edge]:
         """All edges, in id order."""
@@ -987,7 +985,7 @@ class Mesh:
 
         ``ids`` are ids, or handles of the kind.
         """
-        cls = _KIND_OF.get(kind, Handle) if isinstance(kind, str) else Handle  # a bad kind is the callee's to refuse
+        cls = CLASSES.get(kind, Handle) if isinstance(kind, str) else Handle  # a bad kind is the callee's to refuse
         properties.set_property_array(self.ref, kind, name, self._elements(ids, cls), values)
 
     # -- graph views and bulk export -------------------------------------------

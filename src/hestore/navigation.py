@@ -59,10 +59,8 @@ def missing(ref: MeshRef, kind: str, i: int) -> ElementNotFoundError:
     """The error for element ``i`` of ``kind`` not found: `MeshNotFoundError` if the mesh is gone."""
     if not _rows(ref, "nav_mesh", _build_mesh, {}):
         return ref.session.missing(ref)
-    return ElementNotFoundError(f"{kind} {i} does not exist in mesh {ref.name!r} (removed, or never created)")
-
-
-_TABLES = {"vertex": schema.vertices, "half-edge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
+    label = schema.KINDS[kind].label
+    return ElementNotFoundError(f"{label} {i} does not exist in mesh {ref.name!r} (removed, or never created)")
 
 
 def _exists_query(table: sa.Table):
@@ -74,11 +72,11 @@ def _exists_query(table: sa.Table):
     return f"nav_exists_{table.name}", build
 
 
-_EXISTS = {kind: _exists_query(table) for kind, table in _TABLES.items()}
+_EXISTS = {name: _exists_query(kind.table) for name, kind in schema.KINDS.items()}
 
 
 def exists(ref: MeshRef, kind: str, i: int) -> None:
-    """Raise unless element ``i`` of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``) exists."""
+    """Raise unless element ``i`` of ``kind`` (a key of `hestore.schema.KINDS`) exists."""
     key, build = _EXISTS[kind]
     if not ref.session.fetch(ref, key, build, {"i": i}):
         raise missing(ref, kind, i)
@@ -100,7 +98,7 @@ def halfedge_record(ref: MeshRef, h: int) -> tuple:
     """``(origin, next, prev, twin, edge, polygon, target)`` of half-edge ``h``, in one query."""
     rows = _rows(ref, "nav_he", _build_he, {"i": h})
     if not rows:
-        raise missing(ref, "half-edge", h)
+        raise missing(ref, "halfedge", h)
     return rows[0]
 
 
@@ -325,8 +323,8 @@ def find_halfedge(ref: MeshRef, a: int, b: int) -> int | None:
 
 
 def ids(ref: MeshRef, kind: str) -> list[int]:
-    """Ids of every element of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``), ascending."""
-    table = _TABLES[kind]
+    """Ids of every element of ``kind`` (a key of `hestore.schema.KINDS`), ascending."""
+    table = schema.KINDS[kind].table
 
     def build():
         return sa.select(table.c.id).where(table.c.mesh_id == sa.bindparam("m")).order_by(table.c.id)

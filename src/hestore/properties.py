@@ -25,6 +25,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema, values
+from hestore.arrays import Index
 from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError, shown
 from hestore.unitofwork import UNSET, BulkValues
 from hestore.values import KINDS, Property
@@ -46,13 +47,10 @@ __all__ = [
     "array_in",
 ]
 
-_TABLE = {"vertex": schema.vertices, "halfedge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
-_WHAT = {"vertex": "vertex", "halfedge": "half-edge", "edge": "edge", "polygon": "polygon"}
-
 
 def element_table(kind: str) -> sa.Table:
-    """The table of an element kind."""
-    return _TABLE[kind]
+    """The table of an element kind (`hestore.schema.KINDS`)."""
+    return schema.KINDS[kind].table
 
 
 def _kind(kind: object) -> str:
@@ -182,7 +180,7 @@ def properties(ref: MeshRef, kind: str) -> dict[str, Property]:
 
 def _build_lookup(kind: str):
     def build():
-        p, t = schema.properties, _TABLE[kind]
+        p, t = schema.properties, element_table(kind)
         exists = sa.exists().where(t.c.mesh_id == sa.bindparam("m"), t.c.id == sa.bindparam("i"))
         cols = (*values.catalogue_columns(), exists)
         return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind, p.c.name == sa.bindparam("n"))
@@ -224,7 +222,7 @@ def value(ref: MeshRef, kind: str, i: int, name: str) -> Any:
         raise _missing(ref, kind, name)
     *row, exists = found[0]
     if not exists:
-        raise ElementNotFoundError(f"{_WHAT[kind]} {i} does not exist in mesh {ref.name!r}")
+        raise ElementNotFoundError(f"{schema.KINDS[kind].label} {i} does not exist in mesh {ref.name!r}")
     prop = values.property_of(*row)
     table = values.table_of(prop.dtype)
     rows = session.fetch(ref, ("values", table.name), _build_values(table), {"q": prop.id, "i": i})
@@ -248,7 +246,7 @@ def set_value(ref: MeshRef, kind: str, i: int, name: str, new: Any) -> None:
     """
     with ref.session.editing(ref) as uow:
         prop = _declared(ref, uow.values.catalogue(), kind, name)
-        checked = values.check_value(prop, new, f"{_WHAT[kind]} {i}")
+        checked = values.check_value(prop, new, f"{schema.KINDS[kind].label} {i}")
         uow.values.set_value(prop, i, UNSET if checked is None else values.rows(prop, checked))
 
 
@@ -276,7 +274,7 @@ def array_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray):
 
 def _values_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray | None) -> tuple[np.ndarray, Any]:
     """``(ids, values)`` of `array_in`; without ``ids``, every live element's, read in the same statement."""
-    t = _TABLE[prop.kind]
+    t = element_table(prop.kind)
     own_ids = [] if ids is not None else [(t, [t.c.id])]
     table = values.table_of(prop.dtype)
     mine = [table.c.property == prop.id]
@@ -316,11 +314,7 @@ def _values_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray | None) -> tu
             for c, column in enumerate(components):
                 column[(rest[width] >> c) & 1 == 1] = np.nan
     # Rows of elements that are not live (only in a corrupt mesh: check() says PROPERTY_REF) are dropped.
-    at = np.searchsorted(ids, row_ids)
-    inside = at < len(ids)
-    live = np.zeros(len(row_ids), dtype=bool)
-    live[inside] = ids[at[inside]] == row_ids[inside]
-    return ids, values.array_of(prop, len(ids), np.where(live, at, -1), row_parts, components)
+    return ids, values.array_of(prop, len(ids), Index(ids).get(row_ids), row_parts, components)
 
 
 def _read(ref: MeshRef, kind: str, name: str) -> tuple[Property, np.ndarray, Any]:
@@ -359,14 +353,15 @@ def property_array(ref: MeshRef, kind: str, name: str) -> tuple[np.ndarray, np.n
 
 def _ids(ids: object, kind: str) -> np.ndarray:
     """Element ids from an array of ints, checked: 1-D, int64, no duplicates."""
-    what = f"{_WHAT[kind]} ids"
+    label = schema.KINDS[kind].label
+    what = f"{label} ids"
     arr = values.check_arraylike(ids, f"{what} must be an array of ids or a sequence of handles")
     if arr.size == 0:
         return np.zeros(0, dtype=np.int64)
     if arr.ndim != 1 or arr.dtype.kind not in "iu":
         raise InvalidInputError(f"{what} must be a 1-D array of integers, not {arr.dtype} of shape {arr.shape}")
     if arr.dtype.kind == "u" and arr.max() > 2**63 - 1:
-        raise ElementNotFoundError(f"there is no {_WHAT[kind]} {int(arr.max())}: ids are 64-bit integers")
+        raise ElementNotFoundError(f"there is no {label} {int(arr.max())}: ids are 64-bit integers")
     arr = arr.astype(np.int64)
     uniq, counts = np.unique(arr, return_counts=True)
     if (counts > 1).any():
@@ -376,15 +371,13 @@ def _ids(ids: object, kind: str) -> np.ndarray:
 
 def _live_check(ref: MeshRef, kind: str, ids: np.ndarray) -> bool:
     """Raise unless every id is a live element of ``kind``; return whether they are all of them."""
-    t = _TABLE[kind]
+    t = element_table(kind)
     with ref.session.snapshot(ref) as snap:
         [[live]] = snap.columns([(t, [t.c.id])])
-    at = np.searchsorted(live, ids)
-    ok = at < len(live)
-    ok[ok] = live[at[ok]] == ids[ok]
+    _, ok = Index(live).find(ids)
     if not ok.all():
         raise ElementNotFoundError(
-            f"{_WHAT[kind]} {int(ids[~ok][0])} does not exist in mesh {ref.name!r} "
+            f"{schema.KINDS[kind].label} {int(ids[~ok][0])} does not exist in mesh {ref.name!r} "
             f"({int((~ok).sum())} of the {len(ids)} ids do not)"
         )
     return len(ids) == len(live)

@@ -58,7 +58,7 @@ from typing import Any, Callable
 import numpy as np
 
 from hestore import schema, summary, validation
-from hestore.arrays import Index, cycles, dense, polygon_halfedges, positions as position_array
+from hestore.arrays import Index, dense, polygon_halfedges, positions as position_array, restricted_cycles
 from hestore.columns import position_request
 from hestore.errors import InvalidInputError, Violation, require, shown
 from hestore.io import file_errors
@@ -162,11 +162,6 @@ class _Scene:
     revision: int  # the revision the snapshot read
 
 
-def _rows(index: Index, refs: np.ndarray) -> np.ndarray:
-    rows, ok = index.find(refs)
-    return np.where(ok, rows, -1)
-
-
 def _read(ref: MeshRef) -> _Scene:
     h, p = schema.halfedges, schema.polygons
     # The half-edges' polygon column is not read: the polygon loops walked from the polygons' half-edges
@@ -178,9 +173,9 @@ def _read(ref: MeshRef) -> _Scene:
         )
         revision = snap.revision
     vertices, halfedges = Index(v_id), Index(he_id)
-    origin_row = _rows(vertices, origin)
-    twin_row = _rows(halfedges, twin)
-    next_row = _rows(halfedges, nxt)
+    origin_row = vertices.get(origin)
+    twin_row = halfedges.get(twin)
+    next_row = halfedges.get(nxt)
     # A dangling reference (a corrupted table, which `check` reports) must not stop the picture.
     target_row = np.where(twin_row >= 0, origin_row[np.maximum(twin_row, 0)], -1)
     loops = polygon_halfedges(he_id, nxt, p_he) if len(p_id) else None
@@ -579,15 +574,13 @@ def _highlights(mpl, ax, ref: MeshRef, scene: _Scene, screen, placed, violations
 
 
 def _loop_labels(free: np.ndarray, nxt: np.ndarray) -> np.ndarray:
-    """For each half-edge, the smallest free half-edge row on its cycle of ``next`` (meaningful for free ones)."""
-    rows = np.flatnonzero(free)
-    where = np.full(len(free), -1, dtype=np.int64)
-    where[rows] = np.arange(len(rows))
-    f = np.where(nxt[rows] >= 0, where[np.maximum(nxt[rows], 0)], -1)
-    stray = f < 0  # a free half-edge whose next is not free: only in a corrupted table
-    f[stray] = np.flatnonzero(stray)
+    """For each half-edge, the smallest free half-edge row on its cycle of ``next`` (meaningful for free ones).
+
+    A free half-edge whose ``next`` is missing or not free (only in a corrupted table) ends its walk there.
+    """
     label = np.full(len(free), -1, dtype=np.int64)
-    label[rows] = rows[cycles(f)[0]]
+    rows, _, smallest, _, _ = restricted_cycles(np.where(nxt >= 0, nxt, np.arange(len(nxt))), np.where(free, 0, -1))
+    label[rows] = rows[smallest]
     return label
 
 
@@ -595,13 +588,13 @@ def _violations(
     mpl, ax, ref: MeshRef, scene: _Scene, screen, placed, ends_placed, violations: list[Violation]
 ) -> None:
     """The elements the violations name, in red, as one collection (polygons, lines and points in one path set)."""
-    ids: dict[str, list[int]] = {"vertex": [], "halfedge": [], "edge": [], "polygon": []}
+    ids: dict[str, list[int]] = {kind: [] for kind in schema.KINDS}
     for v in violations:
         if v.kind in ids and v.ids:
             ids[v.kind].append(v.ids[0])
 
     def found(table_ids: np.ndarray, wanted: list[int]) -> np.ndarray:
-        rows = _rows(Index(table_ids), np.array(wanted, dtype=np.int64))
+        rows = Index(table_ids).get(np.array(wanted, dtype=np.int64))
         return np.unique(rows[rows >= 0])
 
     halfedges = found(scene.he_id, ids["halfedge"])
@@ -610,7 +603,7 @@ def _violations(
         e = schema.edges
         with ref.session.snapshot(ref) as snap:
             [(e_id, e_halfedge)] = snap.columns([(e, [e.c.id, e.c.halfedge])])
-        edge_halfedges = _rows(Index(scene.he_id), e_halfedge[found(e_id, ids["edge"])])
+        edge_halfedges = Index(scene.he_id).get(e_halfedge[found(e_id, ids["edge"])])
     lines = np.unique(np.r_[halfedges, edge_halfedges[edge_halfedges >= 0]]).astype(np.int64)
     lines = lines[ends_placed[lines]]
     paths = list(_segments(screen, scene.origin[lines], scene.target[lines]))

@@ -10,12 +10,20 @@ form cycles (half-edge ↔ twin, next ↔ prev), and dangling references are an
 invariant (``REF``) that `hestore.validation` reports rather than one the
 database enforces row by row during bulk writes.
 
+The element kinds are named here too, once (`KINDS`): each kind's key
+(``"halfedge"``, the one spelling every module uses), the label messages
+show (``"half-edge"``), its table and its id column in
+`hestore.arrays.TopologyArrays`.
+
 Changes to these tables go through an Alembic revision in ``migrations/``;
 `SCHEMA_REVISION` names the revision this module corresponds to, and a test
 checks that the two agree.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import sqlalchemy as sa
 
@@ -27,6 +35,9 @@ __all__ = [
     "halfedges",
     "edges",
     "polygons",
+    "Kind",
+    "KINDS",
+    "KIND_OF_TABLE",
     "properties",
     "property_reals",
     "property_integers",
@@ -136,6 +147,50 @@ polygons = sa.Table(
     _rev(),
     sqlite_with_rowid=False,
 )
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One element kind: the vocabulary every module takes from `KINDS`.
+
+    Attributes
+    ----------
+    name : str
+        The key code uses: ``"vertex"``, ``"halfedge"``, ``"edge"``, ``"polygon"``.
+    label : str
+        The word messages show (``"half-edge"`` for ``"halfedge"``).
+    table : sqlalchemy.Table
+        The table of its elements.
+    id_column : str
+        Its id column in `hestore.arrays.TopologyArrays` (``"he_id"``).
+
+    Examples
+    --------
+    >>> KINDS["halfedge"].label, KINDS["halfedge"].table.name, KINDS["halfedge"].id_column
+    ('half-edge', 'halfedges', 'he_id')
+    >>> list(KINDS)
+    ['vertex', 'halfedge', 'edge', 'polygon']
+    """
+
+    name: str
+    label: str
+    table: sa.Table = field(repr=False)
+    id_column: str
+
+
+#: The element kinds by name, in the order vertex, halfedge, edge, polygon.
+KINDS = MappingProxyType({
+    kind.name: kind
+    for kind in (
+        Kind("vertex", "vertex", vertices, "v_id"),
+        Kind("halfedge", "half-edge", halfedges, "he_id"),
+        Kind("edge", "edge", edges, "e_id"),
+        Kind("polygon", "polygon", polygons, "p_id"),
+    )
+})
+
+#: The element kind of each element table, by the table's name.
+KIND_OF_TABLE = MappingProxyType({kind.table.name: kind.name for kind in KINDS.values()})
 
 # Properties (SPEC §3.2): a catalogue, and the set values in one table per
 # SQL type. A value row holds up to four components of one element's value

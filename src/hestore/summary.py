@@ -11,7 +11,7 @@ transaction block the block's edits are seen),
 references become row numbers, and the rest is numpy:
 
 - cycles of ``next`` among free half-edges are labelled by pointer jumping
-  (`hestore.arrays.cycles`), ``log2`` of the longest boundary loop rounds;
+  (`hestore.arrays.restricted_cycles`), ``log2`` of the longest boundary loop rounds;
 - connected components come from a vectorised union-find: every tree hooks
   its root onto the smallest neighbouring root, then pointer jumping flattens
   the trees again; each tree merges with another within two rounds, so there
@@ -48,7 +48,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.arrays import Index, component_roots, cycle_positions, cycles, dense, groups
+from hestore.arrays import Index, component_roots, cycle_positions, dense, groups, restricted_cycles
 from hestore.progress import check_progress
 from hestore.session import MeshRef
 
@@ -232,24 +232,16 @@ def _read(ref: MeshRef, *, sides: bool, links: bool) -> _Tables:
 
 
 def _free_cycles(free: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Label the cycles of ``next`` among the free half-edges.
+    """Label the cycles of ``next`` among the free half-edges (`hestore.arrays.restricted_cycles`).
 
     Returns ``(rows, f, label, on_cycle)``: the free half-edges' rows (in id
     order) and, per entry of ``rows``, the position in ``rows`` of its
     ``next``, the position of the smallest member of its cycle, and whether
     it lies on a cycle (always, on a valid mesh: there ``next`` of a free
-    half-edge is free).
+    half-edge is free). A free half-edge whose next has a polygon (a
+    corrupted table) ends its walk there.
     """
-    rows = np.flatnonzero(free)
-    k = len(rows)
-    where = np.full(len(free), -1, dtype=_I64)
-    where[rows] = np.arange(k, dtype=_I64)
-    f = where[nxt[rows]]
-    # A free half-edge whose next has a polygon (a corrupted table) ends its walk there.
-    stray = f < 0
-    f[stray] = np.flatnonzero(stray)
-    label, on_cycle, _ = cycles(f)
-    return rows, f, label, on_cycle
+    return restricted_cycles(nxt, np.where(free, 0, -1))[:4]
 
 
 def _fans(t: _Tables, free: np.ndarray, out_degree: np.ndarray) -> np.ndarray:

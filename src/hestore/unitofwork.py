@@ -36,6 +36,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
+from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError, InvalidInputError, Violation
 from hestore.values import Property, mean, value_of
 from hestore.values import rows as value_rows
@@ -323,18 +324,12 @@ class UnitOfWork:
         self.allow_multi_edges = allow_multi_edges
         self.next_vertex, self.next_edge, self.next_polygon, self.next_property = counters
         self._counters0 = tuple(counters)
-        # current values / values as in the database (NEW: not there yet)
-        self._he: dict[int, Any] = {}
-        self._he0: dict[int, Any] = {}
-        self._v: dict[int, Any] = {}
-        self._v0: dict[int, Any] = {}
-        self._e: dict[int, Any] = {}
-        self._e0: dict[int, Any] = {}
-        self._p: dict[int, Any] = {}
-        self._p0: dict[int, Any] = {}
-        # each kind's current rows and rows as loaded
-        self._rows = {"vertex": (self._v, self._v0), "halfedge": (self._he, self._he0), "edge": (self._e, self._e0),
-                      "polygon": (self._p, self._p0)}
+        # each kind's current rows and rows as in the database (NEW: not there yet)
+        self._rows: dict[str, tuple[dict[int, Any], dict[int, Any]]] = {kind: ({}, {}) for kind in schema.KINDS}
+        self._v, self._v0 = self._rows["vertex"]
+        self._he, self._he0 = self._rows["halfedge"]
+        self._e, self._e0 = self._rows["edge"]
+        self._p, self._p0 = self._rows["polygon"]
         # the positions of vertices made since the last flush (written with their rows)
         self._pos: dict[int, tuple] = {}
         # vertices whose every outgoing half-edge (and its twin) is cached
@@ -666,14 +661,8 @@ class UnitOfWork:
 
     def exists(self, kind: str, i: int) -> None:
         """Raise `ElementNotFoundError` unless element ``i`` of ``kind`` exists now."""
-        if kind == "vertex":
-            self.vhe(i)
-        elif kind == "halfedge":
-            self.he(i)
-        elif kind == "edge":
-            self.edge_he(i)
-        else:
-            self.polygon_he(i)
+        found = schema.KINDS[kind]
+        self._row(self._rows[kind][0], found.table.name, i, found.label)
 
     def made(self, kind: str, i: int) -> bool:
         """Whether element ``i`` of ``kind`` was made since the last flush (so nothing of it is stored)."""

@@ -76,7 +76,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.arrays import Index, TopologyArrays, cycles, first_per_group
+from hestore.arrays import Index, TopologyArrays, first_per_group, restricted_cycles
 from hestore.columns import read_columns
 from hestore.errors import InvalidInputError, Violation
 from hestore.progress import check_progress
@@ -153,7 +153,7 @@ def _table_columns(table: sa.Table) -> list:
     return [c.id, c.halfedge]
 
 
-_TABLES = (schema.halfedges, schema.vertices, schema.edges, schema.polygons)
+_TABLES = [schema.KINDS[kind].table for kind, _ in TopologyArrays.GROUPS]
 _REQUESTS = [(t, _table_columns(t)) for t in _TABLES]
 
 
@@ -306,6 +306,55 @@ class _Checker:
         keep = self.org_ok[h] & (self.org[h] == i)
         return i[keep], h[keep]
 
+    def _walks(
+        self, code: str, kind: str, sub: int, ids: np.ndarray, k: np.ndarray, h0: np.ndarray, *,
+        step: np.ndarray, valid: np.ndarray, grouped: np.ndarray, group: np.ndarray, lands: np.ndarray,
+        leaves: Callable, stuck: Callable, short: Callable,
+    ) -> list[_Batch]:
+        """The walks of ``step`` within groups: `P_LOOP`'s next-loops, `V_ROTATION`'s rotations.
+
+        Half-edge ``h`` is in the group of row ``group[h]`` where
+        ``grouped[h]``; ``step`` is followed where ``valid`` (elsewhere a
+        reference is missing: `REF` reports it, and a group holding such a
+        half-edge is skipped). The walk of group ``k[i]`` (id ``ids[k[i]]``)
+        starts at half-edge row ``h0[i]``. Three batches, numbered from
+        ``sub``: the walks that leave their group (``leaves(group, h0, x, y,
+        lands[y])``: ``x`` steps to ``y``, outside), those that never return
+        to their start (``stuck(group, h0)``), and those whose cycle misses
+        half-edges of the group (``short(group, h0, cycle size, group size,
+        the first half-edge it misses or -1)``); ids, not rows.
+        """
+        he, n_groups = self.a.he_id, len(ids)
+        g = np.where(grouped, group, -1)
+        # rows: the grouped half-edges; label, on_cycle and end speak of positions in them
+        rows, _, label, on_cycle, end = restricted_cycles(np.where(valid, step, self.hrow), g)
+        q = group[rows]
+        exits = valid & grouped & (g[step] != g)
+        touched = np.zeros(n_groups, dtype=bool)
+        touched[group[grouped & ~valid]] = True
+        at = np.cumsum(grouped)[h0] - 1  # h0's positions in rows (each h0 is in a group)
+        keep = valid[rows[end[at]]] & ~touched[k]
+        k, h0, at = k[keep], h0[keep], at[keep]
+        x = rows[end[at]]
+        out = exits[x]
+        y = step[x[out]]
+        leave_batch = _Batch(code, kind, sub, (ids[k[out]], he[h0[out]], he[x[out]], he[y], lands[y]), leaves)
+        k, h0, at = k[~out], h0[~out], at[~out]
+        never = ~on_cycle[at]
+        stuck_batch = _Batch(code, kind, sub + 1, (ids[k[never]], he[h0[never]]), stuck)
+        k, h0, at = k[~never], h0[~never], at[~never]
+        # the cycle from h0 holds only half-edges of its group: all of them?
+        size = np.bincount(label[on_cycle], minlength=len(rows))[label[at]]
+        members = np.bincount(q, minlength=n_groups)
+        bad = size != members[k]
+        k, h0, at, size = k[bad], h0[bad], at[bad], size[bad]
+        cycle_of = np.full(n_groups, -1, dtype=np.int64)
+        cycle_of[k] = label[at]
+        off = (cycle_of[q] >= 0) & ~(on_cycle & (label == cycle_of[q]))
+        missed = first_per_group(q[off], he[rows[off]], n_groups)
+        short_batch = _Batch(code, kind, sub + 2, (ids[k], he[h0], size, members[k], missed[k]), short)
+        return [leave_batch, stuck_batch, short_batch]
+
     def H_TWIN(self) -> list[_Batch]:
         he = self.a.he_id
         i = np.flatnonzero(self.tw_ok)
@@ -456,7 +505,7 @@ class _Checker:
         ]
 
     def P_LOOP(self) -> list[_Batch]:
-        a, he, nH, nP = self.a, self.a.he_id, self.nH, self.nP
+        a, he = self.a, self.a.he_id
         # polygon(p.halfedge) == p
         k = np.flatnonzero(self.ph_ok)
         h0 = self.ph[k]
@@ -471,70 +520,23 @@ class _Checker:
             lambda p, h, q: ((p, h), f"halfedge = {h}, but polygon({h}) = {_null(q)}"),
         )
         k, h0 = k[~bad], h0[~bad]
-        # Walk next only between half-edges of one polygon: a half-edge whose
-        # next lies elsewhere ("exit") becomes a fixed point, and so does one
-        # whose next or next's polygon is missing ("broken", left to REF). On
-        # a valid mesh this needs log2(largest polygon) rounds, not log2(n).
-        i = np.flatnonzero(self.nxt_ok)
-        n = self.nxt[i]
-        broken = np.ones(nH, dtype=bool)
-        broken[i] = ~self.pol_valid[n]
-        same = np.zeros(nH, dtype=bool)
-        same[i] = self.pol_ok[i] & (a.he_polygon[n] == a.he_polygon[i])
-        same &= ~broken
-        exits = self.pol_ok & ~same & ~broken
-        label, on_cycle, end = cycles(np.where(same, self.nxt, self.hrow))
-        touched = np.zeros(nP, dtype=bool)
-        touched[self.pol[self.pol_ok & broken]] = True
-        keep = ~broken[end[h0]] & ~touched[k]
-        k, h0 = k[keep], h0[keep]
-        x = end[h0]
-        leaves = exits[x]
-        y = self.nxt[x[leaves]]
-        leave_batch = _Batch(
-            "P_LOOP",
-            "polygon",
-            1,
-            (a.p_id[k[leaves]], he[h0[leaves]], he[x[leaves]], he[y], a.he_polygon[y]),
-            lambda p, h, x, y, q: (
+        # Walk next only between half-edges of one polygon; a next that is missing, or whose polygon is,
+        # is left to REF. On a valid mesh this needs log2(largest polygon) rounds, not log2(n).
+        return [owner_batch, *self._walks(
+            "P_LOOP", "polygon", 1, a.p_id, k, h0,
+            step=self.nxt, valid=self.nxt_ok & self.pol_valid[self.nxt], grouped=self.pol_ok, group=self.pol,
+            lands=a.he_polygon,
+            leaves=lambda p, h, x, y, q: (
                 (p, h, x, y),
                 f"the next-loop from halfedge {h} leaves the polygon: next({x}) = {y} lies in polygon {_null(q)}",
             ),
-        )
-        k, h0 = k[~leaves], h0[~leaves]
-        stuck = ~on_cycle[h0]
-        stuck_batch = _Batch(
-            "P_LOOP",
-            "polygon",
-            2,
-            (a.p_id[k[stuck]], he[h0[stuck]]),
-            lambda p, h: ((p, h), f"walking next from halfedge {h} never returns to it"),
-        )
-        k, h0 = k[~stuck], h0[~stuck]
-        # the loop of h0 holds only half-edges of p: does it hold all of them?
-        size = np.bincount(label[on_cycle], minlength=nH)
-        loop_size = size[label[h0]]
-        members = np.bincount(self.pol[self.pol_ok], minlength=nP)
-        bad = loop_size != members[k]
-        k, h0, loop_size = k[bad], h0[bad], loop_size[bad]
-        loop_of = np.full(nP, -1, dtype=np.int64)
-        loop_of[k] = label[h0]
-        j = np.flatnonzero(self.pol_ok)
-        q = self.pol[j]
-        off = (loop_of[q] >= 0) & ~(on_cycle[j] & (label[j] == loop_of[q]))
-        stray = first_per_group(q[off], he[j[off]], nP)
-        loop_batch = _Batch(
-            "P_LOOP",
-            "polygon",
-            3,
-            (a.p_id[k], he[h0], loop_size, members[k], stray[k]),
-            lambda p, h, size, mine, x: (
+            stuck=lambda p, h: ((p, h), f"walking next from halfedge {h} never returns to it"),
+            short=lambda p, h, size, mine, x: (
                 (p, h, *_eg_ids(x)),
                 f"the next-loop from halfedge {h} has {size} half-edge(s), but polygon {p} has {mine}; "
                 f"{mine - size} not on the loop{_eg(x)}",
             ),
-        )
-        return [owner_batch, leave_batch, stuck_batch, loop_batch]
+        )]
 
     def V_HALFEDGE(self) -> list[_Batch]:
         a, he = self.a, self.a.he_id
@@ -570,76 +572,26 @@ class _Checker:
         return [null_batch, origin_batch]
 
     def V_ROTATION(self) -> list[_Batch]:
-        a, he, nH, nV = self.a, self.a.he_id, self.nH, self.nV
-        # r(h) = next(twin(h)), walked only between half-edges of one origin:
-        # one whose r starts elsewhere ("exit") becomes a fixed point, and so
-        # does one with a missing twin, next(twin) or origin ("broken", left
-        # to REF). On a valid mesh this needs log2(highest degree) rounds.
-        i = np.flatnonzero(self.tw_ok & self.org_ok)
-        t = self.tw[i]
-        i, t = i[self.nxt_ok[t]], t[self.nxt_ok[t]]
-        r = self.nxt[t]
-        i, r = i[self.org_ok[r]], r[self.org_ok[r]]
-        broken = np.ones(nH, dtype=bool)
-        broken[i] = False
-        rot = self.hrow.copy()
-        rot[i] = r
-        same = np.zeros(nH, dtype=bool)
-        same[i] = self.org[r] == self.org[i]
-        exits = ~broken & ~same
-        label, on_cycle, end = cycles(np.where(same, rot, self.hrow))
+        a = self.a
+        # r(h) = next(twin(h)), walked only between half-edges of one origin; one with a missing twin,
+        # next(twin) or origin is left to REF. On a valid mesh this needs log2(highest degree) rounds.
+        rot = self.nxt[self.tw]
         k, h0 = self.good_vertices()
-        touched = np.zeros(nV, dtype=bool)
-        touched[self.org[self.org_ok & broken]] = True
-        keep = ~broken[end[h0]] & ~touched[k]
-        k, h0 = k[keep], h0[keep]
-        x = end[h0]
-        leaves = exits[x]
-        y = rot[x[leaves]]
-        leave_batch = _Batch(
-            "V_ROTATION",
-            "vertex",
-            0,
-            (a.v_id[k[leaves]], he[h0[leaves]], he[x[leaves]], he[y], a.he_origin[y]),
-            lambda v, h, x, y, w: (
+        return self._walks(
+            "V_ROTATION", "vertex", 0, a.v_id, k, h0,
+            step=rot, valid=self.tw_ok & self.org_ok & self.nxt_ok[self.tw] & self.org_ok[rot], grouped=self.org_ok,
+            group=self.org, lands=a.he_origin,
+            leaves=lambda v, h, x, y, w: (
                 (v, h, x, y),
                 f"rotating from halfedge {h} leaves the vertex: next(twin({x})) = {y} starts at vertex {w}",
             ),
-        )
-        k, h0 = k[~leaves], h0[~leaves]
-        stuck = ~on_cycle[h0]
-        stuck_batch = _Batch(
-            "V_ROTATION",
-            "vertex",
-            1,
-            (a.v_id[k[stuck]], he[h0[stuck]]),
-            lambda v, h: ((v, h), f"rotating (h -> next(twin(h))) from halfedge {h} never returns to it"),
-        )
-        k, h0 = k[~stuck], h0[~stuck]
-        # the rotation from h0 holds only outgoing half-edges of v: all of them?
-        size = np.bincount(label[on_cycle], minlength=nH)
-        ring_size = size[label[h0]]
-        out = self.out_count[k]
-        bad = ring_size != out
-        k, h0, ring_size = k[bad], h0[bad], ring_size[bad]
-        ring_of = np.full(nV, -1, dtype=np.int64)
-        ring_of[k] = label[h0]
-        j = np.flatnonzero(self.org_ok)
-        w = self.org[j]
-        off = (ring_of[w] >= 0) & ~(on_cycle[j] & (label[j] == ring_of[w]))
-        missed = first_per_group(w[off], he[j[off]], nV)
-        ring_batch = _Batch(
-            "V_ROTATION",
-            "vertex",
-            2,
-            (a.v_id[k], he[h0], ring_size, self.out_count[k], missed[k]),
-            lambda v, h, size, out, x: (
+            stuck=lambda v, h: ((v, h), f"rotating (h -> next(twin(h))) from halfedge {h} never returns to it"),
+            short=lambda v, h, size, out, x: (
                 (v, h, *_eg_ids(x)),
                 f"rotating from halfedge {h} visits {size} half-edge(s), but {out} start at vertex {v}; "
                 f"{out - size} not visited{_eg(x)}",
             ),
         )
-        return [leave_batch, stuck_batch, ring_batch]
 
     def V_BOUNDARY(self) -> list[_Batch]:
         a, he = self.a, self.a.he_id
@@ -896,7 +848,6 @@ def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violatio
     catalogue = {pid: (kind, name) for pid, kind, name in snap.rows(
         sa.select(p.c.id, p.c.kind, p.c.name).where(p.c.mesh_id == mesh_id)
     )}
-    live = {"vertex": a.v_id, "halfedge": a.he_id, "edge": a.e_id, "polygon": a.p_id}
     tables = schema.VALUE_TABLES
     columns = snap.columns([(t, [t.c.id, t.c.property], [t.c.part == 0]) for t in tables])
     out = []
@@ -911,17 +862,13 @@ def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violatio
                 )
                 continue
             kind, name = catalogue[pid]
-            dangling = rows[~np.isin(rows, live[kind])]
+            dangling = rows[~np.isin(rows, getattr(a, schema.KINDS[kind].id_column))]
             out.extend(
                 Violation("PROPERTY_REF", kind, (i, pid), f"property {name!r} has a value for {kind} {i}, "
                           "which does not exist")
                 for i in dangling[:100].tolist()
             )
     return sorted(out, key=lambda v: (v.kind, v.ids))
-
-
-#: The kind of element each versioned table holds, for `HISTORY` violations.
-_KIND_OF_TABLE = {"vertices": "vertex", "halfedges": "halfedge", "edges": "edge", "polygons": "polygon"}
 
 
 def _history_violations(snap, mesh_id: int) -> list[Violation]:
@@ -933,7 +880,7 @@ def _history_violations(snap, mesh_id: int) -> list[Violation]:
     out = []
     for table in schema.VERSIONED:
         history = schema.HISTORY[table.name]
-        kind = _KIND_OF_TABLE.get(table.name, "property")
+        kind = schema.KIND_OF_TABLE.get(table.name, "property")
         key = [c for c in table.primary_key if c.name != "mesh_id"]
         hkey = [history.c[c.name] for c in key]
         mine, theirs = table.c.mesh_id == mesh_id, history.c.mesh_id == mesh_id

@@ -91,8 +91,8 @@ __all__ = [
     "catalogue_columns",
 ]
 
-#: Element kinds a property can be declared on.
-KINDS = ("vertex", "halfedge", "edge", "polygon")
+#: Element kinds a property can be declared on: every kind of `hestore.schema.KINDS`.
+KINDS = tuple(schema.KINDS)
 #: Property dtypes.
 DTYPES = ("float64", "int64", "bool", "str")
 #: Components per value row.

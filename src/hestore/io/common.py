@@ -40,6 +40,7 @@ from typing import BinaryIO, Protocol
 
 import numpy as np
 
+from hestore.arrays import as_integers
 from hestore.errors import InvalidInputError
 from hestore.urls import check_path
 
@@ -298,15 +299,6 @@ def parse(text, total: int, dtype) -> np.ndarray | None:
     except ValueError:
         return None
     return values if values.size == total else None
-
-
-def as_indices(values: np.ndarray) -> np.ndarray | None:
-    """Integer-valued numbers as int64, or None if one is not an integer."""
-    if values.dtype.kind in "iu":
-        return values.astype(np.int64, copy=False)
-    with np.errstate(invalid="ignore"):
-        ok = np.isfinite(values) & (values == np.floor(values)) & (np.abs(values) < 2.0**63)
-    return values.astype(np.int64) if ok.all() else None
 
 
 def coordinate(token: bytes, path: str, line: int) -> float:
@@ -574,7 +566,7 @@ def count_prefixed(values, counts, lead: int, trail: int, exact: bool):
     if (counts <= lead).any():
         return None
     row = np.cumsum(counts) - counts
-    k = as_indices(values[row + lead])
+    k = as_integers(values[row + lead])
     # A count beyond the row's length is malformed, and refusing it here also
     # keeps ``need`` below from wrapping around for a count near 2**63.
     if k is None or (k < 0).any() or (k >= counts).any():
@@ -587,7 +579,7 @@ def count_prefixed(values, counts, lead: int, trail: int, exact: bool):
         chosen = values.reshape(n, c0)[:, lead + 1 : lead + 1 + k0].ravel()
     else:
         chosen = values[ranges(row + lead + 1, k)]
-    indices = as_indices(chosen)
+    indices = as_integers(chosen)
     return None if indices is None else (k, indices)
 
 
