@@ -4,7 +4,9 @@ The layers are an import-linter contract in ``pyproject.toml``
 (``[tool.importlinter]``): from the command line down through the catalogue,
 the mesh facade, the algorithms and the session to storage and the errors,
 no module imports one above it — function-local imports included — so no
-import cycle can come back unnoticed. Ruff's rules are in ``[tool.ruff]``.
+import cycle can come back unnoticed; and no module above the session
+imports SQLAlchemy (a ``forbidden`` contract). Ruff's rules are in
+``[tool.ruff]``.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import pathlib
 import subprocess
 import sys
+import tomllib
 
 from importlinter.cli import lint_imports
 
@@ -36,6 +39,16 @@ def test_the_layer_contract_sees_function_local_imports(tmp_path, capsys):
     # hestore.mesh imports hestore.graphs only inside Mesh.to_networkx.
     assert lint_imports(config_filename=str(config), no_cache=True) == 1
     assert "hestore.mesh -> hestore.graphs" in capsys.readouterr().out
+
+
+def test_every_module_above_the_session_is_kept_from_sqlalchemy():
+    # The forbidden contract lists its modules: it must list every one the layers put above the session.
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]["contracts"]
+    layers = next(c for c in contracts if c.get("containers") == ["hestore"])["layers"]
+    above = {f"hestore.{m.strip()}" for layer in layers[: layers.index("session")] for m in layer.split("|")}
+    [sql] = [c for c in contracts if c["type"] == "forbidden"]
+    assert sql["forbidden_modules"] == ["sqlalchemy"]
+    assert set(sql["source_modules"]) == above
 
 
 def test_ruff_finds_nothing():

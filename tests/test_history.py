@@ -1756,3 +1756,24 @@ def test_random_edits_read_back_and_undo_back(store, edits):
         mesh.undo()
         assert snapshot(mesh) == snaps[last - k], f"undo {k}"
     assert mesh.check() == []
+
+
+def test_a_trace_sees_the_catalogue_and_history_statements(store):
+    # Every statement goes on the session's cursor, the catalogue's and history's too: a trace misses none.
+    sent: list[str] = []
+    with store.session.traced(sent.append):
+        mesh = store.import_arrays("traced", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
+        mesh.add_vertex()
+        [v.id for v in mesh.at(1).vertex(0).neighbors()]
+        mesh.history()
+    text = [" ".join(sql.split()).lower() for sql in sent]
+
+    def seen(*words: str) -> bool:
+        return any(all(w in sql for w in words) for sql in text)
+
+    assert seen("select", "from meshes", "meshes.name =")  # the catalogue: is the name taken?
+    assert seen("insert into meshes")  # the catalogue: the new mesh
+    assert seen("kept_from", "from meshes")  # the view's revision is kept
+    assert seen("insert into revisions")  # the import's and the edit's revisions
+    assert seen("from revisions", "order by revisions.number desc")  # the history listed
+    assert seen("from halfedges", "rev_to")  # the view's read, as of its revision

@@ -222,9 +222,11 @@ def test_induced_view_reads_only_its_rows(store):
     with store.session.traced(statements.append):
         H = mesh.to_networkx(vertices=S)
     assert sorted(H) == [0, 1, 31, 32]
-    # One statement for the vertices' rows, one for the half-edges they start, nothing read by the mesh.
-    assert len(statements) == 2, statements
-    assert all(" IN (" in sql for sql in statements), statements
+    # The revision the view is of, then one statement for the vertices' rows and one for the half-edges they
+    # start: nothing read by the mesh.
+    assert len(statements) == 3, statements
+    assert "meshes.revision" in statements[0], statements
+    assert all(" IN (" in sql for sql in statements[1:]), statements
 
 
 def test_k_ring_is_one_query_per_level(store):

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, NamedTuple
 
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import build as _build
 from hestore import io as mesh_io
@@ -52,7 +51,7 @@ from hestore.arrays import (
     positions as position_array,
     ragged,
 )
-from hestore.columns import position_request
+from hestore.columns import position_request, request
 from hestore.errors import InvalidInputError, NonOrientableError, TopologyError
 from hestore.progress import check_progress
 from hestore.session import MeshRef
@@ -526,10 +525,9 @@ def _soup(ref: MeshRef) -> tuple[np.ndarray, Ragged, np.ndarray, np.ndarray]:
 
     A block's own edits are included.
     """
-    h, p = schema.halfedges, schema.polygons
     with ref.session.snapshot(ref) as snap:
         (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_next), (_p_id, p_he) = snap.columns(
-            [position_request(), (h, [h.c.id, h.c.origin, h.c.next]), (p, [p.c.id, p.c.halfedge])]
+            [position_request(), request("halfedges", "origin", "next"), request("polygons", "halfedge")]
         )
     loops = polygon_halfedges(h_id, h_next, p_he)
     corners = Ragged(loops.offsets, Index(v_id).find(h_origin[loops.indices])[0])
@@ -565,11 +563,9 @@ def dual(ref: MeshRef) -> tuple[np.ndarray, Ragged]:
     >>> positions.shape, polygons.offsets.tolist()
     ((4, 3), [0, 3, 6, 9, 12])
     """
-    h, p = schema.halfedges, schema.polygons
-    halfedge_columns = [h.c.id, h.c.origin, h.c.prev, h.c.twin, sa.func.coalesce(h.c.polygon, -1)]
     with ref.session.snapshot(ref) as snap:
         (v_id, vx, vy, vz, v_missing), (h_id, h_origin, h_prev, h_twin, h_polygon), (p_id,) = snap.columns(
-            [position_request(), (h, halfedge_columns), (p, [p.c.id])]
+            [position_request(), request("halfedges", "origin", "prev", "twin", "polygon"), request("polygons")]
         )
     free = np.flatnonzero(h_polygon < 0)
     if len(free):

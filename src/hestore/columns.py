@@ -24,8 +24,9 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
+from hestore.statements import Prepared
 
-__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request"]
+__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request", "request"]
 
 _FETCH_ROWS = 65536
 _WRITE_ROWS = 131072
@@ -56,6 +57,20 @@ def position_request() -> tuple:
     return (v, [v.c.id, *(sa.func.coalesce(v.c[k], 0.0) for k in "xyz"), missing])
 
 
+def request(table: str, *names: str) -> tuple:
+    """The `read_columns` request for columns of one of `hestore.schema`'s tables, by name; ``id`` comes first.
+
+    A column that may be NULL (a free half-edge's ``polygon``, an isolated
+    vertex's ``halfedge``) reads as -1 there.
+
+    >>> table, cols = request("halfedges", "origin", "polygon")
+    >>> table.name, [str(c) for c in cols]
+    ('halfedges', ['halfedges.id', 'halfedges.origin', 'coalesce(halfedges.polygon, :coalesce_1)'])
+    """
+    t = schema.metadata.tables[table]
+    return (t, [t.c.id, *(sa.func.coalesce(t.c[n], -1) if t.c[n].nullable else t.c[n] for n in names)])
+
+
 @contextmanager
 def read_snapshot(connection: sa.Connection) -> Iterator[None]:
     """Make the statements run inside the block see one committed state.
@@ -64,7 +79,8 @@ def read_snapshot(connection: sa.Connection) -> Iterator[None]:
     own writes). An idle SQLite connection gets a deferred ``BEGIN`` (a read
     snapshot in WAL mode), an idle autocommit psycopg connection ``BEGIN
     ISOLATION LEVEL REPEATABLE READ READ ONLY``; both are rolled back after,
-    leaving the connection as it was.
+    leaving the connection as it was (on a cursor of their own: a trace of
+    the session's statements sees the reads, not this transaction control).
 
     Examples
     --------
@@ -85,32 +101,48 @@ def read_snapshot(connection: sa.Connection) -> Iterator[None]:
     if begin is None:
         yield
         return
-    cursor = dbapi.cursor()
-    try:
+    with _cursor_of(connection) as cursor:
         cursor.execute(begin)
         try:
             yield
         finally:
             cursor.execute("ROLLBACK")
+
+
+@contextmanager
+def _cursor_of(connection: sa.Connection, cursor=None) -> Iterator:
+    """``cursor``, or a new cursor of the connection's closed afterwards."""
+    if cursor is not None:
+        yield cursor
+        return
+    cursor = connection.connection.dbapi_connection.cursor()
+    try:
+        yield cursor
     finally:
         cursor.close()
 
 
 def _fetch_cursor(
-    connection: sa.Connection, table: sa.Table, columns: Sequence, mesh_id: int, where: Sequence = ()
+    connection: sa.Connection, cursor, table: sa.Table, columns: Sequence, mesh_id: int, where: Sequence = ()
 ) -> list[np.ndarray]:
     """``SELECT columns ... WHERE mesh_id = ... ORDER BY id``, read from the DBAPI cursor in chunks.
 
+    On ``cursor`` if given (compiled here), else through the connection.
     Each chunk of rows becomes one structured array with `numpy.fromiter`
     (no SQLAlchemy ``Row`` objects) and is split into columns at once, so the
     peak memory is about one copy of the result.
     """
     dtype = np.dtype([(f"c{k}", np.float64 if _is_float(c) else np.int64) for k, c in enumerate(columns)])
     stmt = sa.select(*columns).where(table.c.mesh_id == mesh_id, *where).order_by(table.c.id)
-    parts: list[np.ndarray] = []
-    result = connection.execute(stmt)
-    try:
+    result = None
+    if cursor is None:
+        result = connection.execute(stmt)
         cursor = result.cursor
+    else:
+        prepared = Prepared(stmt, connection.dialect, prepare=False)
+        prepared.execute(cursor, prepared.params({}))
+    parts: list[np.ndarray] = []
+    try:
         while True:
             rows = cursor.fetchmany(_FETCH_ROWS)
             if not rows:
@@ -118,7 +150,8 @@ def _fetch_cursor(
             parts.append(np.fromiter(rows, dtype=dtype, count=len(rows)))
             del rows
     finally:
-        result.close()
+        if result is not None:
+            result.close()
     block = np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
     del parts
     return [np.ascontiguousarray(block[name]) for name in dtype.names]
@@ -179,7 +212,7 @@ def _as_8_bytes(column):
     return sa.cast(column, sa.Float(53) if _is_float(column) else sa.BigInteger)
 
 
-def _fetch_pg_copy(connection: sa.Connection, mesh_id: int, requests: Sequence) -> list[np.ndarray]:
+def _fetch_pg_copy(cursor, dialect: sa.engine.Dialect, mesh_id: int, requests: Sequence) -> list[np.ndarray]:
     """All requested tables in one statement, through binary ``COPY`` (psycopg 3).
 
     ``SELECT`` of one ``array_agg`` per column per table, the one-row
@@ -201,12 +234,11 @@ def _fetch_pg_copy(connection: sa.Connection, mesh_id: int, requests: Sequence) 
         dtypes.extend(np.float64 if _is_float(c) else np.int64 for c in cols)
         from_ = aggregated if from_ is None else from_.join(aggregated, sa.true())
     stmt = sa.select(*columns).select_from(from_)
-    sql = str(stmt.compile(dialect=connection.dialect, compile_kwargs={"literal_binds": True}))
+    sql = str(stmt.compile(dialect=dialect, compile_kwargs={"literal_binds": True}))
     chunks = []
-    with connection.connection.dbapi_connection.cursor() as cursor:
-        with cursor.copy(f"COPY ({sql}) TO STDOUT (FORMAT BINARY)") as copy:
-            for data in copy:
-                chunks.append(data)
+    with cursor.copy(f"COPY ({sql}) TO STDOUT (FORMAT BINARY)") as copy:
+        for data in copy:
+            chunks.append(data)
     buf = chunks[0] if len(chunks) == 1 else b"".join(chunks)
     del chunks
     with memoryview(buf) as view:
@@ -219,6 +251,7 @@ def read_columns(
     requests: Sequence[tuple[sa.Table, Sequence]],
     *,
     use_copy: bool | None = None,
+    cursor=None,
 ) -> list[list[np.ndarray]]:
     """Read columns of several tables for one mesh, as one consistent state.
 
@@ -236,6 +269,9 @@ def read_columns(
     use_copy : bool or None, optional
         Force (True) or forbid (False) the PostgreSQL ``COPY`` path; by
         default it is used on PostgreSQL with psycopg 3.
+    cursor : DBAPI cursor, optional
+        A cursor of the connection's to send the statements on (a session's,
+        which a trace sees); by default the connection's own path.
 
     Returns
     -------
@@ -259,12 +295,13 @@ def read_columns(
     if use_copy is None:
         use_copy = uses_copy(connection.dialect)
     if use_copy:
-        flat = _fetch_pg_copy(connection, mesh_id, requests)
+        with _cursor_of(connection, cursor) as copying:
+            flat = _fetch_pg_copy(copying, connection.dialect, mesh_id, requests)
     else:
         flat = []
         with read_snapshot(connection):
             for table, cols, *where in requests:
-                flat.extend(_fetch_cursor(connection, table, cols, mesh_id, where[0] if where else ()))
+                flat.extend(_fetch_cursor(connection, cursor, table, cols, mesh_id, where[0] if where else ()))
     out = []
     start = 0
     for _, cols, *_where in requests:

@@ -33,7 +33,7 @@ from sqlalchemy.pool import NullPool, StaticPool
 from hestore import urls
 from hestore.errors import HestoreError, StoreBusyError, StoreError
 
-__all__ = ["make_engine", "is_driver_error", "translate", "guard"]
+__all__ = ["make_engine", "is_driver_error", "is_integrity_error", "translate", "guard"]
 
 _BUSY_SQLSTATES = {"55P03", "40P01", "40001"}  # lock_not_available, deadlock, serialization
 _READ_ONLY_SQLSTATES = {"25006"}  # read_only_sql_transaction
@@ -119,6 +119,23 @@ def is_driver_error(exc: BaseException) -> bool:
     if isinstance(exc, (sa.exc.SQLAlchemyError, sqlite3.Error)):
         return True
     return any(k.__module__.partition(".")[0] == "psycopg" for k in type(exc).__mro__)
+
+
+def is_integrity_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a driver's refusal of a row that breaks a constraint (a name taken, say).
+
+    Examples
+    --------
+    >>> import sqlite3
+    >>> is_integrity_error(sqlite3.IntegrityError("UNIQUE constraint failed")), is_integrity_error(ValueError())
+    (True, False)
+    """
+    if isinstance(exc, (sa.exc.IntegrityError, sqlite3.IntegrityError)):
+        return True
+    # psycopg's errors by SQLSTATE (UniqueViolation, …) are subclasses of its IntegrityError.
+    return any(
+        k.__name__ == "IntegrityError" and k.__module__.partition(".")[0] == "psycopg" for k in type(exc).__mro__
+    )
 
 
 def translate(exc: BaseException, what: str, shown_url: str) -> StoreError:

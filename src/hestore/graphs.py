@@ -48,12 +48,12 @@ from typing import Callable, Iterable, Iterator
 
 import networkx as nx
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import properties as props
-from hestore import schema, traversal
+from hestore import schema
+from hestore import traversal
 from hestore.arrays import Index, run_starts
-from hestore.columns import position_request
+from hestore.columns import position_request, request
 from hestore.errors import InvalidInputError, PropertyNotFoundError, shown
 from hestore.progress import check_progress
 from hestore.traversal import KINDS, LENGTH, NUMERIC
@@ -368,27 +368,16 @@ def _remember(cache: dict, key: tuple, revision: int, G: nx.Graph) -> None:
 # What each kind reads
 
 
-def _halfedge_columns(*names: str) -> tuple:
-    h = schema.halfedges
-    return (h, [h.c.id, *(sa.func.coalesce(h.c.polygon, -1) if k == "polygon" else h.c[k] for k in names)])
-
-
-def _edge_columns() -> tuple:
-    e = schema.edges
-    return (e, [e.c.id, e.c.halfedge])
-
-
-def _polygon_columns() -> tuple:
-    p = schema.polygons
-    return (p, [p.c.id, p.c.halfedge])
-
-
-# The lists are new on each call: `to_networkx` may append to one.
+# The lists are new on each call: `to_networkx` may append to one. A free half-edge's polygon reads as -1.
 _REQUESTS: dict[str, Callable[[], list]] = {
-    "multigraph": lambda: [position_request(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
-    "graph": lambda: [position_request(), _halfedge_columns("origin", "twin"), _edge_columns()],
-    "halfedge": lambda: [position_request(), _halfedge_columns("origin", "twin", "edge", "polygon")],
-    "dual": lambda: [_polygon_columns(), _halfedge_columns("origin", "twin", "polygon"), _edge_columns()],
+    "multigraph": lambda: [
+        position_request(), request("halfedges", "origin", "twin", "polygon"), request("edges", "halfedge")
+    ],
+    "graph": lambda: [position_request(), request("halfedges", "origin", "twin"), request("edges", "halfedge")],
+    "halfedge": lambda: [position_request(), request("halfedges", "origin", "twin", "edge", "polygon")],
+    "dual": lambda: [
+        request("polygons", "halfedge"), request("halfedges", "origin", "twin", "polygon"), request("edges", "halfedge")
+    ],
 }
 
 
@@ -476,7 +465,7 @@ def _names(attrs: object) -> tuple[str, ...]:
 
 def _plan(ref: MeshRef, snap, kind: str, names: tuple[str, ...]) -> _Plan:
     """Resolve ``names`` against the properties of the mesh in this snapshot."""
-    catalogue = props.catalogue_in(snap, ref.id)
+    catalogue = props.catalogue_in(snap)
     node_kind, edge_kinds = _TARGETS[kind]
     own_nodes, own_edges = _OWN[kind]
     nodes: list[Property] = []

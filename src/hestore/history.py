@@ -1,13 +1,13 @@
 """History of a mesh: its revisions, what changed between two, and going back (SPEC §4.1).
 
 This module owns the meaning of history on top of the row versions the
-session keeps: `Revision` and `Diff`, the net changes between two revisions
-(`diff`, computed from the rows that differ, so an element created and
-removed in between appears nowhere and a value written back unchanged is no
-change), the list of kept revisions (`history`), and the undo stack
-(`undo`, `redo`, `revert`). Reads of a past revision are the session's
-(`hestore.session.Session.view`); the mesh facade wraps them as
-``mesh.at(r)``.
+history engine reads and restores (`hestore.timeline`): `Revision` and
+`Diff`, the net changes between two revisions (`diff`, computed from the
+rows that differ, so an element created and removed in between appears
+nowhere and a value written back unchanged is no change), the list of kept
+revisions (`history`), and the undo stack (`undo`, `redo`, `revert`).
+Reads of a past revision are the session's (`hestore.session.Session.view`);
+the mesh facade wraps them as ``mesh.at(r)``.
 
 The undo stack is derived from what each kept revision records it did
 (an undo or redo of which revision), so it survives reconnecting and is the
@@ -20,7 +20,7 @@ import json
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from hestore import schema
+from hestore import schema, timeline
 from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
 from hestore.journal import KINDS
 from hestore.values import check_integer, check_revision, property_of, value_of
@@ -85,7 +85,7 @@ class Diff:
 
 
 def diff_of(versions: dict) -> Diff:
-    """A `Diff` from `hestore.session.Session.versions`'s rows at the two revisions."""
+    """A `Diff` from `hestore.timeline.versions`' rows at the two revisions."""
     created, removed, changed = ({k: set() for k in KINDS} for _ in range(3))
     for kind in KINDS:
         before, after = ({row[0]: row for row in rows} for rows in versions[schema.KINDS[kind].table.name])
@@ -131,14 +131,14 @@ def diff(ref: MeshRef, a: int, b: int) -> Diff:
     ([2], [])
     """
     a, b = check_revision(a), check_revision(b)
-    return diff_of(ref.session.versions(ref, a, b))
+    return diff_of(timeline.versions(ref, a, b))
 
 
 def changes_of(ref: MeshRef, number: int, stored: str | None) -> dict:
     """The ``changes`` of one revision: stored for a bulk revision, else its diff with the one before."""
     if stored is not None:
         return json.loads(stored)
-    return diff_of(ref.session.versions(ref, number - 1, number, check=False)).counts()
+    return diff_of(timeline.versions(ref, number - 1, number, check=False)).counts()
 
 
 def history(ref: MeshRef, limit: int | None = None) -> list[Revision]:
@@ -159,22 +159,15 @@ def history(ref: MeshRef, limit: int | None = None) -> list[Revision]:
         if not 0 <= limit < 2**63:  # SQL takes no count beyond 64 bits
             raise InvalidInputError(f"limit is a number of revisions from 0 to 2**63 - 1, not {shown(limit)}")
     kept = [
-        Revision(int(n), _utc(at), message, changes_of(ref, int(n), stored))
-        for n, at, message, stored, _action, _target in ref.session.revisions(ref, limit)
+        Revision(int(n), at, message, changes_of(ref, int(n), stored))
+        for n, at, message, stored, _action, _target in timeline.revisions(ref, limit)
     ]
     if not kept:
         return kept
     # Another process may have pruned meanwhile, taking rows some changes were read from: those
     # revisions are gone. A prune only moves forward, so what is kept now was kept all along.
-    oldest = ref.session.oldest_kept(ref)
+    oldest = timeline.oldest_kept(ref)
     return [r for r in kept if r.number >= oldest]
-
-
-def _utc(at: datetime) -> datetime:
-    # SQLite gives back naive datetimes: they were written in UTC.
-    from datetime import timezone
-
-    return at if at.tzinfo is not None else at.replace(tzinfo=timezone.utc)
 
 
 def _stacks(ref: MeshRef) -> tuple[list[int], list[int]]:
@@ -186,7 +179,7 @@ def _stacks(ref: MeshRef) -> tuple[list[int], list[int]]:
     """
     undo_stack: list[int] = []
     redo_stack: list[int] = []
-    for number, _at, _message, _changes, action, target in ref.session.revisions(ref, newest_first=False):
+    for number, _at, _message, _changes, action, target in timeline.revisions(ref, newest_first=False):
         if action == "undo":
             if undo_stack and undo_stack[-1] == target:
                 undo_stack.pop()
@@ -204,7 +197,7 @@ def _stacks(ref: MeshRef) -> tuple[list[int], list[int]]:
 def revert(ref: MeshRef, revision: int, message: str | None = None) -> int:
     """Commit a new revision whose content equals ``mesh.at(revision)``; return its number."""
     revision = check_revision(revision)
-    return ref.session.restore(ref, revision, message or f"revert to revision {revision}", "revert", revision)
+    return timeline.restore(ref, revision, message or f"revert to revision {revision}", "revert", revision)
 
 
 def undo(ref: MeshRef) -> int:
@@ -219,7 +212,7 @@ def redo(ref: MeshRef) -> int:
 
 def _step(ref: MeshRef, action: str) -> int:
     session = ref.session
-    session.restorable(ref, action)
+    timeline.restorable(ref, action)
     # What to restore is decided under the writer lock, from the history as committed then: a stack
     # read before the lock is granted may miss a revision another writer committed meanwhile, and
     # restoring from it would throw that edit away.
@@ -230,7 +223,7 @@ def _step(ref: MeshRef, action: str) -> int:
             raise RevisionNotFoundError(f"mesh {ref.name!r} has nothing to {action}")
         target = stack[-1]
         state = target - 1 if action == "undo" else target  # before the change, or after it
-        return session.restore(ref, state, f"{action} of revision {target}", action, target)
+        return timeline.restore(ref, state, f"{action} of revision {target}", action, target)
 
 
 def prune(ref: MeshRef, keep: int) -> int:
@@ -238,4 +231,4 @@ def prune(ref: MeshRef, keep: int) -> int:
     keep = check_integer(keep, "keep")
     if keep < 1:
         raise InvalidInputError(f"keep must be at least 1 (the current revision), not {shown(keep)}")
-    return ref.session.prune(ref, keep)
+    return timeline.prune(ref, keep)

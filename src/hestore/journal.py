@@ -5,8 +5,11 @@ This module owns the statements over the history tables of
 `hestore.persistence`'s): turning any read statement into the same read of
 an earlier revision (`as_of`), listing kept revisions, fetching the row
 versions that changed between two revisions, and the set-based statements
-that make the current rows equal to an earlier revision's (`restore`). It
-is used by `hestore.session` only.
+that make the current rows equal to an earlier revision's
+(`restore_statements`). Its builders are compiled as the queries of
+`hestore.queries.history` and as a view's reads (`hestore.queries.Executor.as_of`);
+`hestore.persistence` records history with `to_history`, and
+`hestore.session` reads a view's columns with `request_as_of`.
 
 A row version belongs to revision ``r`` when ``rev <= r < rev_to``: current
 rows have no ``rev_to``, history rows have one, and a history row with

@@ -16,8 +16,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Iterable, Iterator, Sequence
 
-import sqlalchemy as sa
-
 from hestore import (
     bulk,
     euler,
@@ -43,6 +41,7 @@ from hestore.errors import (
     shown,
 )
 from hestore.handles import CLASSES, Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
+from hestore.queries import Query, elements
 from hestore.values import Property
 from hestore.session import MeshRef
 from hestore.unitofwork import UnitOfWork
@@ -62,25 +61,6 @@ class Counts:
     halfedges: int
     edges: int
     polygons: int
-
-
-def _build_revision():
-    m = schema.meshes
-    return sa.select(m.c.revision).where(m.c.id == sa.bindparam("m"))
-
-
-def _build_counts():
-    def count(t: sa.Table):
-        return sa.select(sa.func.count()).select_from(t).where(t.c.mesh_id == sa.bindparam("m")).scalar_subquery()
-
-    m = schema.meshes
-    return sa.select(
-        sa.select(m.c.id).where(m.c.id == sa.bindparam("m")).scalar_subquery(),
-        count(schema.vertices),
-        count(schema.halfedges),
-        count(schema.edges),
-        count(schema.polygons),
-    )
 
 
 class Mesh:
@@ -178,8 +158,8 @@ class Mesh:
             exc.elements = tuple(CLASSES[kind](self, i) for kind, i in exc.refs if kind in CLASSES)
             raise
 
-    def _fetch(self, key: str, build) -> list[tuple]:
-        return self.session.fetch(self.ref, key, build, {})
+    def _fetch(self, query: Query) -> list[tuple]:
+        return self.session.fetch(self.ref, query, {})
 
     # -- summaries ----------------------------------------------------------
 
@@ -192,7 +172,7 @@ class Mesh:
         if self.ref.revision is not None:
             self.session.check()
             return self.ref.revision
-        rows = self._fetch("mesh_revision", _build_revision)
+        rows = self._fetch(elements.revision)
         if not rows:
             raise self.session.missing(self.ref)
         return rows[0][0]
@@ -288,7 +268,7 @@ class Mesh:
         >>> mesh.counts()
         Counts(vertices=0, halfedges=0, edges=0, polygons=0)
         """
-        exists, *counts = self._fetch("mesh_counts", _build_counts)[0]
+        exists, *counts = self._fetch(elements.counts)[0]
         if exists is None:
             raise self.session.missing(self.ref)
         return Counts(*counts)

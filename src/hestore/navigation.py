@@ -5,9 +5,9 @@ and behind the circulators. Its functions are free functions on a mesh's
 identity (`hestore.session.MeshRef`) and integer ids, returning ids and id records; `hestore.handles` wraps them into
 handles. Each answers with as few queries as it can: a half-edge's references
 together with its target in one query, a vertex's whole star or a polygon's
-whole ring in one query, ordered in Python afterwards. Every query is a
-compiled statement run through `hestore.session.Session.fetch`, so it sees
-the open transaction's own edits.
+whole ring in one query, ordered in Python afterwards. Every query is one of
+`hestore.queries.elements` and `hestore.queries.stars`, run through
+`hestore.session.Session.fetch`, so it sees the open transaction's own edits.
 
 Rotation order is counter-clockwise, ``onext(h) = twin(prev(h))``, starting at
 the element's own ``halfedge``.
@@ -20,11 +20,9 @@ from __future__ import annotations
 
 import math
 
-import sqlalchemy as sa
-
 from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
-from hestore.statements import indexed_by
+from hestore.queries import Query, elements, stars
 from hestore.session import MeshRef
 
 __all__ = [
@@ -43,60 +41,31 @@ __all__ = [
     "ids",
 ]
 
-_H = schema.halfedges
 
-
-def _rows(ref: MeshRef, key, build, values: dict) -> list[tuple]:
-    return ref.session.fetch(ref, key, build, values)
-
-
-def _build_mesh():
-    m = schema.meshes
-    return sa.select(m.c.id).where(m.c.id == sa.bindparam("m"))
+def _rows(ref: MeshRef, query: Query, values: dict) -> list[tuple]:
+    return ref.session.fetch(ref, query, values)
 
 
 def missing(ref: MeshRef, kind: str, i: int) -> ElementNotFoundError:
     """The error for element ``i`` of ``kind`` not found: `MeshNotFoundError` if the mesh is gone."""
-    if not _rows(ref, "nav_mesh", _build_mesh, {}):
+    if not _rows(ref, elements.mesh, {}):
         return ref.session.missing(ref)
     label = schema.KINDS[kind].label
     return ElementNotFoundError(f"{label} {i} does not exist in mesh {ref.name!r} (removed, or never created)")
 
 
-def _exists_query(table: sa.Table):
-    def build():
-        return sa.select(sa.literal_column("1")).where(
-            table.c.mesh_id == sa.bindparam("m"), table.c.id == sa.bindparam("i")
-        )
-
-    return f"nav_exists_{table.name}", build
-
-
-_EXISTS = {name: _exists_query(kind.table) for name, kind in schema.KINDS.items()}
-
-
 def exists(ref: MeshRef, kind: str, i: int) -> None:
     """Raise unless element ``i`` of ``kind`` (a key of `hestore.schema.KINDS`) exists."""
-    key, build = _EXISTS[kind]
-    if not ref.session.fetch(ref, key, build, {"i": i}):
+    if not _rows(ref, elements.exists(schema.KINDS[kind].table), {"i": i}):
         raise missing(ref, kind, i)
 
 
 # -- half-edges ---------------------------------------------------------------
 
 
-def _build_he():
-    t = _H.alias("t")
-    return (
-        sa.select(_H.c.origin, _H.c.next, _H.c.prev, _H.c.twin, _H.c.edge, _H.c.polygon, t.c.origin)
-        .select_from(_H.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)))
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.id == sa.bindparam("i"))
-    )
-
-
 def halfedge_record(ref: MeshRef, h: int) -> tuple:
     """``(origin, next, prev, twin, edge, polygon, target)`` of half-edge ``h``, in one query."""
-    rows = _rows(ref, "nav_he", _build_he, {"i": h})
+    rows = _rows(ref, elements.halfedge, {"i": h})
     if not rows:
         raise missing(ref, "halfedge", h)
     return rows[0]
@@ -121,42 +90,13 @@ def length(ref: MeshRef, h: int) -> float | None:
 # -- vertices -----------------------------------------------------------------
 
 
-def _build_v():
-    v = schema.vertices
-    return sa.select(v.c.halfedge, v.c.x, v.c.y, v.c.z).where(
-        v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i")
-    )
-
-
 def vertex_row(ref: MeshRef, v: int) -> tuple:
     """``(halfedge, x, y, z)`` of vertex ``v`` (``halfedge`` None if isolated, coordinates None without a position)."""
-    rows = _rows(ref, "nav_v", _build_v, {"i": v})
+    rows = _rows(ref, elements.vertex, {"i": v})
     if not rows:
         raise missing(ref, "vertex", v)
     return rows[0]
 
-
-def _star_query(targets: bool):
-    def build():
-        v, t = schema.vertices, _H.alias("t")
-        # Joined on the parameters, not on v's columns: a view (`hestore.journal.as_of`) can then narrow
-        # the half-edges before the join.
-        j = v.outerjoin(_H, sa.and_(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin == sa.bindparam("i")))
-        extra = [_H.c.edge, _H.c.polygon]
-        if targets:
-            j = j.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
-            extra = [t.c.origin]
-        stmt = (
-            sa.select(v.c.halfedge, _H.c.id, _H.c.prev, _H.c.twin, *extra)
-            .select_from(j)
-            .where(v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i"))
-        )
-        return indexed_by(stmt, _H, "ix_halfedges_origin")
-
-    return ("nav_star_targets" if targets else "nav_star"), build
-
-
-_STARS = {False: _star_query(False), True: _star_query(True)}
 
 #: Fields of a `star` row: the half-edge, its prev and twin; then its edge and polygon, or (``targets``) its target.
 STAR_ID, STAR_PREV, STAR_TWIN = 1, 2, 3
@@ -174,8 +114,7 @@ def star(ref: MeshRef, v: int, *, targets: bool = False) -> list[tuple]:
     twin(prev(h))``, so the row after ``r`` is the one whose twin is ``r``'s
     prev.
     """
-    key, build = _STARS[targets]
-    rows = ref.session.fetch(ref, key, build, {"i": v})
+    rows = _rows(ref, stars.of_vertex(targets), {"i": v})
     if not rows:
         raise missing(ref, "vertex", v)
     start = rows[0][0]
@@ -201,21 +140,12 @@ def star(ref: MeshRef, v: int, *, targets: bool = False) -> list[tuple]:
     )
 
 
-def _build_vfree():
-    v = schema.vertices
-    return (
-        sa.select(v.c.halfedge, _H.c.polygon)
-        .select_from(v.outerjoin(_H, sa.and_(_H.c.mesh_id == v.c.mesh_id, _H.c.id == v.c.halfedge)))
-        .where(v.c.mesh_id == sa.bindparam("m"), v.c.id == sa.bindparam("i"))
-    )
-
-
 def is_boundary_vertex(ref: MeshRef, v: int) -> bool:
     """Whether vertex ``v`` has a free outgoing half-edge, or is isolated (as in OpenMesh).
 
     O(1): by the boundary convention ``v.halfedge`` is free if any is.
     """
-    rows = _rows(ref, "nav_vfree", _build_vfree, {"i": v})
+    rows = _rows(ref, elements.vertex_free, {"i": v})
     if not rows:
         raise missing(ref, "vertex", v)
     return rows[0][0] is None or rows[0][1] is None
@@ -224,26 +154,12 @@ def is_boundary_vertex(ref: MeshRef, v: int) -> bool:
 # -- polygons -----------------------------------------------------------------
 
 
-def _build_ring():
-    p, t = schema.polygons, _H.alias("t")
-    # Joined on the parameters, as in `_star_query`.
-    j = p.outerjoin(_H, sa.and_(_H.c.mesh_id == sa.bindparam("m"), _H.c.polygon == sa.bindparam("i"))).outerjoin(
-        t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)
-    )
-    stmt = (
-        sa.select(p.c.halfedge, _H.c.id, _H.c.next, _H.c.origin, _H.c.edge, t.c.polygon)
-        .select_from(j)
-        .where(p.c.mesh_id == sa.bindparam("m"), p.c.id == sa.bindparam("i"))
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_polygon")
-
-
 def ring(ref: MeshRef, p: int) -> list[tuple]:
     """Half-edges of polygon ``p`` as ``(id, next, origin, edge, twin_polygon)``.
 
     In ``next`` order from ``p.halfedge``; one query for the whole ring.
     """
-    rows = _rows(ref, "nav_ring", _build_ring, {"i": p})
+    rows = _rows(ref, elements.ring, {"i": p})
     if not rows:
         raise missing(ref, "polygon", p)
     start = rows[0][0]
@@ -263,14 +179,9 @@ def ring(ref: MeshRef, p: int) -> list[tuple]:
     )
 
 
-def _build_p():
-    pol = schema.polygons
-    return sa.select(pol.c.halfedge).where(pol.c.mesh_id == sa.bindparam("m"), pol.c.id == sa.bindparam("i"))
-
-
 def polygon_halfedge(ref: MeshRef, p: int) -> int:
     """The half-edge stored for polygon ``p``."""
-    rows = _rows(ref, "nav_p", _build_p, {"i": p})
+    rows = _rows(ref, elements.polygon, {"i": p})
     if not rows:
         raise missing(ref, "polygon", p)
     return rows[0][0]
@@ -279,21 +190,9 @@ def polygon_halfedge(ref: MeshRef, p: int) -> int:
 # -- edges --------------------------------------------------------------------
 
 
-def _build_e():
-    e, t = schema.edges, _H.alias("t")
-    j = e.outerjoin(_H, sa.and_(_H.c.mesh_id == e.c.mesh_id, _H.c.id == e.c.halfedge)).outerjoin(
-        t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)
-    )
-    return (
-        sa.select(e.c.halfedge, _H.c.twin, _H.c.origin, t.c.origin, _H.c.polygon, t.c.polygon)
-        .select_from(j)
-        .where(e.c.mesh_id == sa.bindparam("m"), e.c.id == sa.bindparam("i"))
-    )
-
-
 def edge_row(ref: MeshRef, e: int) -> tuple:
     """``(h, twin, origin(h), origin(twin), polygon(h), polygon(twin))`` of edge ``e``, ``h`` its half-edge."""
-    rows = _rows(ref, "nav_e", _build_e, {"i": e})
+    rows = _rows(ref, elements.edge, {"i": e})
     if not rows:
         raise missing(ref, "edge", e)
     return rows[0]
@@ -302,34 +201,17 @@ def edge_row(ref: MeshRef, e: int) -> tuple:
 # -- mesh level ---------------------------------------------------------------
 
 
-def _build_find():
-    t = _H.alias("t")
-    stmt = (
-        sa.select(_H.c.id)
-        .select_from(_H.join(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin)))
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin == sa.bindparam("a"), t.c.origin == sa.bindparam("b"))
-        .order_by(sa.case((_H.c.polygon.is_(None), 0), else_=1), _H.c.id)
-        .limit(1)
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_origin")
-
-
 def find_halfedge(ref: MeshRef, a: int, b: int) -> int | None:
     """A half-edge from vertex ``a`` to vertex ``b``, a free one if any (lowest id); ``None`` if none."""
     exists(ref, "vertex", a)
     exists(ref, "vertex", b)
-    rows = _rows(ref, "nav_find", _build_find, {"a": a, "b": b})
+    rows = _rows(ref, elements.find_halfedge, {"a": a, "b": b})
     return rows[0][0] if rows else None
 
 
 def ids(ref: MeshRef, kind: str) -> list[int]:
     """Ids of every element of ``kind`` (a key of `hestore.schema.KINDS`), ascending."""
-    table = schema.KINDS[kind].table
-
-    def build():
-        return sa.select(table.c.id).where(table.c.mesh_id == sa.bindparam("m")).order_by(table.c.id)
-
-    found = [r[0] for r in _rows(ref, ("nav_ids", kind), build, {})]
-    if not found and not _rows(ref, "nav_mesh", _build_mesh, {}):
+    found = [r[0] for r in _rows(ref, elements.ids(schema.KINDS[kind].table), {})]
+    if not found and not _rows(ref, elements.mesh, {}):
         raise ref.session.missing(ref)
     return found

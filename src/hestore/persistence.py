@@ -1,13 +1,16 @@
 """The SQL of the unit of work: batched loads of a mesh's rows, set-based writes of its changes.
 
-This module owns every statement that moves a `hestore.unitofwork.UnitOfWork`'s
-rows between the database and memory (SQLAlchemy's ``persistence`` to the
-unit of work): `Persistence.load` fetches stars, rings and rows by id in one
-``UNION ALL``; `Persistence.write` turns one `hestore.unitofwork.ChangeSet`
-into one statement per table and kind of change — an ``executemany`` on
-SQLite, a single statement over ``unnest``-ed arrays on PostgreSQL, and the
-binary ``COPY`` / multi-row ``INSERT`` paths of `hestore.columns` for the
-whole tables of a bulk import. It also reads and locks a mesh's catalogue row
+This module moves a `hestore.unitofwork.UnitOfWork`'s rows between the
+database and memory (SQLAlchemy's ``persistence`` to the unit of work):
+`Persistence.load` fetches stars, rings and rows by id in one ``UNION ALL``
+(`hestore.queries.stars.load`), with the positions, property catalogue and
+values the unit of work asks for (`hestore.queries`); `Persistence.write`
+turns one `hestore.unitofwork.ChangeSet` into one statement per table and
+kind of change — an ``executemany`` on SQLite, a single statement over
+``unnest``-ed arrays on PostgreSQL, and the binary ``COPY`` / multi-row
+``INSERT`` paths of `hestore.columns` for the whole tables of a bulk
+import. It owns the write statements (registered queries ``uow.*``, and the
+PostgreSQL ``unnest`` SQL). It also reads and locks a mesh's catalogue row
 (`Persistence.mesh_row`). It is used by `hestore.session` only; it knows
 nothing of transactions.
 """
@@ -15,8 +18,7 @@ nothing of transactions.
 from __future__ import annotations
 
 import functools
-from datetime import datetime, timezone
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import sqlalchemy as sa
@@ -26,21 +28,11 @@ from sqlalchemy.schema import CreateTable
 from hestore import schema
 from hestore.columns import write_columns
 from hestore.journal import created_changes, to_history
-from hestore.statements import (
-    MAX_IN, StatementCache, in_chunks, in_keys, in_list_bucket, indexed_by, padded, padded_values,
-)
-from hestore.unitofwork import (
-    HE_COLUMNS,
-    K_EDGE,
-    K_HALFEDGE,
-    K_POLYGON,
-    K_VERTEX,
-    UNSET,
-    BulkValues,
-    ChangeSet,
-    PropertyChanges,
-)
-from hestore.values import Property, catalogue_columns, dump_default, property_of, table_of
+from hestore.queries import Executor, query
+from hestore.queries import catalogue, elements, history, stars, values as value_rows
+from hestore.statements import MAX_IN, in_chunks, in_keys, in_list_bucket, padded, padded_values
+from hestore.unitofwork import HE_COLUMNS, UNSET, BulkValues, ChangeSet, PropertyChanges
+from hestore.values import Property, dump_default, property_of, table_of
 
 __all__ = ["Persistence"]
 
@@ -51,58 +43,6 @@ def _catalogue_row(p: Property) -> tuple:
 
 def _value_columns(table: sa.Table) -> tuple:
     return ("property", "id", "part") + tuple(c.name for c in table.c if c.name.startswith("v"))
-
-
-def _load_statement(sizes: tuple) -> sa.CompoundSelect:
-    """The ``UNION ALL`` behind `Persistence.load` for the given part sizes."""
-    h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
-    null = sa.cast(sa.null(), sa.BigInteger)
-    m = sa.bindparam("m")
-
-    def kind(k: int):
-        return sa.literal_column(str(k), sa.Integer)
-
-    def he_cols(t):
-        return [kind(K_HALFEDGE)] + [t.c[name] for name in HE_COLUMNS]
-
-    def pair_cols(k, t):
-        return [kind(k), t.c.id, t.c.halfedge] + [null] * 5
-
-    selects = []
-    for name, size in sizes:
-        ids = in_keys(size, name)
-        if name == "vertices":
-            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
-        elif name == "halfedges":
-            selects.append(sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.id.in_(ids)))
-        elif name == "stars":
-            s, t = h.alias("s"), h.alias("t")
-            selects.append(sa.select(*pair_cols(K_VERTEX, v)).where(v.c.mesh_id == m, v.c.id.in_(ids)))
-            out = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.origin.in_(ids))
-            selects.append(indexed_by(out, h, "ix_halfedges_origin"))
-            twins = (
-                sa.select(*he_cols(t))
-                .select_from(s.join(t, sa.and_(t.c.mesh_id == s.c.mesh_id, t.c.id == s.c.twin)))
-                .where(s.c.mesh_id == m, s.c.origin.in_(ids))
-            )
-            selects.append(indexed_by(twins, s, "ix_halfedges_origin"))
-        elif name == "edges":
-            a, b = h.alias("a"), h.alias("b")
-            selects.append(sa.select(*pair_cols(K_EDGE, e)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
-            on_a = sa.and_(a.c.mesh_id == e.c.mesh_id, a.c.id == e.c.halfedge)
-            selects.append(sa.select(*he_cols(a)).select_from(e.join(a, on_a)).where(e.c.mesh_id == m, e.c.id.in_(ids)))
-            selects.append(
-                sa.select(*he_cols(b))
-                .select_from(e.join(a, on_a).join(b, sa.and_(b.c.mesh_id == a.c.mesh_id, b.c.id == a.c.twin)))
-                .where(e.c.mesh_id == m, e.c.id.in_(ids))
-            )
-        elif name == "polygons":
-            selects.append(sa.select(*pair_cols(K_POLYGON, p)).where(p.c.mesh_id == m, p.c.id.in_(ids)))
-            ring = sa.select(*he_cols(h)).where(h.c.mesh_id == m, h.c.polygon.in_(ids))
-            selects.append(indexed_by(ring, h, "ix_halfedges_polygon"))
-        else:  # pragma: no cover - programming error
-            raise ValueError(f"unknown load part {name!r}")
-    return sa.union_all(*selects)
 
 
 #: Rows from which a PostgreSQL write lets the planner see its arrays' length (see `_pg_arrays`).
@@ -154,10 +94,6 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple, sized: bool) -> str:
         f"UPDATE {name} AS t SET {sets} FROM unnest({arrays}) AS u({', '.join(q(c) for c in cols)}) "
         f"WHERE t.{q('mesh_id')} = %s AND t.{q('id')} = u.{q('id')}"
     )
-
-
-def _of_property(table: sa.Table):
-    return table.c.property == sa.bindparam("q")
 
 
 def _pg_to_history(table: sa.Table, what: str, key: tuple, sized: bool) -> str:
@@ -212,8 +148,8 @@ _CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
 _VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
 _HE_UPDATE = ("id", "origin", "next", "prev", "polygon")
-#: The parameters of `_revision_insert`, in the order `Persistence.write` has them.
-_REVISION = ("m", "n", "at", "msg", "ch", "sv", "se", "sp", "sq")
+#: The parameters of `hestore.queries.history.add_revision`, in the order `Persistence.write` has them.
+_REVISION = ("m", "n", "at", "msg", "ch", "sv", "se", "sp", "sq", "act", "tgt")
 
 
 @functools.cache
@@ -250,14 +186,75 @@ def _mesh_update() -> sa.Update:
     )
 
 
-def _revision_insert() -> sa.Insert:
-    """A kept revision's row: number, time, message, bulk ``changes`` and the id counters at its start."""
-    r = schema.revisions
-    return r.insert().values(
-        mesh_id=sa.bindparam("m"), number=sa.bindparam("n"), committed_at=sa.bindparam("at"),
-        message=sa.bindparam("msg"), changes=sa.bindparam("ch"), next_vertex=sa.bindparam("sv"),
-        next_edge=sa.bindparam("se"), next_polygon=sa.bindparam("sp"), next_property=sa.bindparam("sq"),
-    )
+# The statements of a flush, each registered once (`hestore.queries.Query`); the reads of a load are
+# `hestore.queries.stars`', `hestore.queries.catalogue`'s and `hestore.queries.values`'.
+
+_UPDATE_MESH = query("uow.update_mesh")(_mesh_update)
+
+#: The counters' update with the revision's row riding on it (PostgreSQL: one round trip).
+_UPDATE_MESH_ADDED = query("uow.update_mesh_added")(
+    lambda: _mesh_update().add_cte(history.revision_insert().cte("added"))
+)
+
+
+@query("uow.drop")
+def _drop_rows(table: sa.Table):
+    key = table.c.id if table is schema.meshes else table.c.mesh_id
+    return table.delete().where(key == sa.bindparam("m"))
+
+
+@query("uow.clear")
+def _clear_values(table: sa.Table):
+    return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
+
+
+@query("uow.update_staged")
+def _update_staged():
+    s, v = schema.position_updates, schema.vertices
+    where = (v.c.mesh_id == s.c.mesh_id, v.c.id == s.c.id)
+    return v.update().where(*where).values(x=s.c.x, y=s.c.y, z=s.c.z, rev=sa.bindparam("r"))
+
+
+@query("uow.journal_ids")
+def _journal_ids(table: sa.Table, what: str, size: int):
+    return to_history(table, what, "sqlite", table.c.id.in_(in_keys(size)))
+
+
+@query("uow.journal_keys")
+def _journal_keys(table: sa.Table, what: str, key: tuple):
+    return to_history(table, what, "sqlite", *(table.c[c] == sa.bindparam(c) for c in key))
+
+
+#: The rows `_journal_picked` records, by name: those of one property, those in the positions' scratch table.
+_WHERE = {
+    "property": lambda t: t.c.property == sa.bindparam("q"),
+    "staged": lambda t: sa.exists().where(
+        schema.position_updates.c.mesh_id == t.c.mesh_id, schema.position_updates.c.id == t.c.id
+    ),
+}
+
+
+@query("uow.journal_picked")
+def _journal_picked(table: sa.Table, what: str, where: str, dialect: str):
+    return to_history(table, what, dialect, _WHERE[where](table))
+
+
+@query("uow.write")
+def _write_rows(table: sa.Table, what: str, cols: tuple):
+    """SQLite's ``executemany`` statements: delete (matching every column), update (by id), insert, upsert."""
+    m = table.c.mesh_id == sa.bindparam("m")
+    if what == "delete":
+        return table.delete().where(m, *(table.c[c] == sa.bindparam(c) for c in cols))
+    if what == "update":
+        key = table.c.id == sa.bindparam("id")
+        return table.update().where(m, key).values({c: sa.bindparam(c) for c in cols[1:]})
+    insert = sqlite_insert(table).values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
+    if what == "upsert":
+        key = [c.name for c in table.primary_key]
+        insert = insert.on_conflict_do_update(
+            index_elements=key, set_={c: insert.excluded[c] for c in cols if c not in key}
+        )
+    return insert
 
 
 class Persistence:
@@ -265,16 +262,14 @@ class Persistence:
 
     Parameters
     ----------
-    statements : StatementCache
-        Compiled statements of the session's dialect.
-    cursor : callable
-        Returns the DBAPI cursor of the session's connection.
+    db : hestore.queries.Executor
+        The session's statements, run on its cursor.
     """
 
-    def __init__(self, statements: StatementCache, cursor: Callable[[], Any]) -> None:
-        self.st = statements
-        self.cursor = cursor
-        self._pg = statements.dialect.name == "postgresql"
+    def __init__(self, db: Executor) -> None:
+        self.db = db
+        self.cursor = db.cursor
+        self._pg = db.dialect.name == "postgresql"
         self._pg_sql: dict[tuple, str] = {}
 
     # -- the catalogue row ------------------------------------------------
@@ -287,30 +282,11 @@ class Persistence:
         for the rest of the transaction (``SELECT ... FOR UPDATE``; the caller
         sets the lock timeout).
         """
-        m, props = schema.meshes, schema.properties
-
-        def build():
-            has = sa.exists().where(props.c.mesh_id == m.c.id)
-            stmt = sa.select(
-                m.c.next_vertex, m.c.next_edge, m.c.next_polygon, m.c.next_property,
-                m.c.allow_loops, m.c.allow_multi_edges, has, m.c.revision, m.c.history,
-            ).where(m.c.id == sa.bindparam("m"))
-            return stmt.with_for_update(of=m) if lock else stmt
-
-        rows = self.st.get(("mesh_row", lock), build).rows(self.cursor(), {"m": mesh_id})
-        return rows[0] if rows else None
+        return self.db.first(catalogue.mesh_row(lock), {"m": mesh_id})
 
     def catalogue(self, mesh_id: int) -> list[Property]:
         """The mesh's declared properties."""
-        p = schema.properties
-
-        def build():
-            cols = catalogue_columns()
-            return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m")).order_by(p.c.id)
-
-        return [
-            property_of(*row) for row in self.st.get("catalogue", build).rows(self.cursor(), {"m": mesh_id})
-        ]
+        return [property_of(*row) for row in self.db.rows(catalogue.properties_of, {"m": mesh_id})]
 
     # -- loads -----------------------------------------------------------
 
@@ -337,25 +313,17 @@ class Persistence:
                     rows.extend(self.load(mesh_id, {name: chunk}))
             return rows
         sizes = tuple((name, in_list_bucket(len(ids))) for name, ids in parts)
-        stmt = self.st.get(("load",) + sizes, lambda: _load_statement(sizes))
         values: dict[str, Any] = {"m": mesh_id}
         for (name, ids), (_, size) in zip(parts, sizes):
             values.update(padded(ids, size, name))
-        return stmt.rows(self.cursor(), values)
+        return self.db.rows(stars.load(sizes), values)
 
     def positions(self, mesh_id: int, ids: list[int]) -> dict[int, tuple | None]:
         """Stored positions of these vertices: ``{id: (x, y, z) or None}``."""
-        v = schema.vertices
         out: dict[int, tuple | None] = {}
         for chunk, size in in_chunks(ids):
-
-            def build(size=size):
-                return sa.select(v.c.id, v.c.x, v.c.y, v.c.z).where(
-                    v.c.mesh_id == sa.bindparam("m"), v.c.id.in_(in_keys(size))
-                )
-
             values = {"m": mesh_id, **padded(chunk, size)}
-            for i, x, y, z in self.st.get(("positions", size), build).rows(self.cursor(), values):
+            for i, x, y, z in self.db.rows(elements.vertices(size), values):
                 out[i] = None if x is None else (x, y, z)
         return out
 
@@ -371,21 +339,12 @@ class Persistence:
         for prop in props:
             by_table.setdefault(table_of(prop.dtype), []).append(prop.id)
         for table, pids in by_table.items():
-            cols = _value_columns(table)
             psize = in_list_bucket(len(pids))
             for chunk, size in in_chunks(ids):
-
-                def build(table=table, size=size, psize=psize, cols=cols):
-                    return sa.select(*(table.c[c] for c in cols)).where(
-                        table.c.mesh_id == sa.bindparam("m"),
-                        table.c.property.in_(in_keys(psize, "q")),
-                        table.c.id.in_(in_keys(size)),
-                    )
-
                 values = {"m": mesh_id}
                 values.update(padded(chunk, size))
                 values.update(padded(pids, psize, "q"))
-                for row in self.st.get(("values", table.name, size, psize), build).rows(self.cursor(), values):
+                for row in self.db.rows(value_rows.of_elements(table, size, psize), values):
                     out.setdefault((row[0], row[1]), []).append(row[2:])
         return out
 
@@ -412,11 +371,8 @@ class Persistence:
         A dropped mesh loses every row and its catalogue row.
         """
         if changes.drop:
-            for table in schema.MESH_TABLES:
-                drop = lambda t=table: t.delete().where(t.c.mesh_id == sa.bindparam("m"))  # noqa: E731
-                self._run(("drop", table.name), drop, changes.mesh_id)
-            ms = schema.meshes
-            self._run(("drop", "meshes"), lambda: ms.delete().where(ms.c.id == sa.bindparam("m")), changes.mesh_id)
+            for table in (*schema.MESH_TABLES, schema.meshes):
+                self.db.run(_drop_rows(table), {"m": changes.mesh_id})
             return
         h, v, e, p = schema.halfedges, schema.vertices, schema.edges, schema.polygons
         elements = ((v, changes.vertices), (h, changes.halfedges), (e, changes.edges), (p, changes.polygons))
@@ -455,19 +411,18 @@ class Persistence:
                 # Whole tables wrote no history: what they created is counted here, once.
                 n = {name: len(columns["id"]) for name, columns in changes.bulk.tables.items()}
                 counts = created_changes(n["vertices"], n["halfedges"], n["edges"], n["polygons"])
-            at = datetime.now(timezone.utc)
+            at = history.now(sqlite=not self._pg)
             if self._pg:
                 sv, se, sp, sq = changes.start
-                values.update(n=changes.revision, at=at, msg=message, ch=counts, sv=sv, se=se, sp=sp, sq=sq)
-                # The revision's row rides on the counters' update: one round trip.
-                self.st.get("upd_mesh_added", lambda: _mesh_update().add_cte(_revision_insert().cte("added"))).run(
-                    self.cursor(), values
+                values.update(
+                    n=changes.revision, at=at, msg=message, ch=counts, sv=sv, se=se, sp=sp, sq=sq, act=None, tgt=None
                 )
+                # The revision's row rides on the counters' update: one round trip.
+                self.db.run(_UPDATE_MESH_ADDED, values)
                 return
-            # As sqlite3's datetime adapter wrote it (deprecated since Python 3.12), without the adapter's call.
-            row = (changes.mesh_id, changes.revision, at.isoformat(" "), message, counts, *changes.start)
-            self.st.get("add_revision", _revision_insert).run_ordered(self.cursor(), _REVISION, row)
-        self.st.get("upd_mesh", _mesh_update).run(self.cursor(), values)
+            row = (changes.mesh_id, changes.revision, at, message, counts, *changes.start, None, None)
+            self.db.run_ordered(history.add_revision, _REVISION, row)
+        self.db.run(_UPDATE_MESH, values)
 
     def _write_properties(self, changes: ChangeSet, pc: PropertyChanges) -> None:
         """Catalogue, values and bulk positions of one flush, in `PropertyChanges`' order.
@@ -507,12 +462,9 @@ class Persistence:
         """Delete every value of one property."""
         table = table_of(prop.dtype)
         if changes.history:
-            self._journal_where(changes, table, "old", "property", {"q": prop.id}, _of_property)
+            self._journal_where(changes, table, "old", "property", {"q": prop.id})
 
-        def build():
-            return table.delete().where(table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"))
-
-        self.st.get(("clear", table.name), build).run(self.cursor(), {"m": changes.mesh_id, "q": prop.id})
+        self.db.run(_clear_values(table), {"m": changes.mesh_id, "q": prop.id})
 
     def _write_bulk_values(self, changes: ChangeSet, bulk: BulkValues) -> None:
         """One set-based write of many elements' values (or positions)."""
@@ -541,9 +493,9 @@ class Persistence:
             self._write_columns(changes, table, "insert", names, [list(columns[c]) for c in names])
             return
         columns["rev"] = np.full(n, changes.revision)
-        write_columns(self.cursor(), self.st.dialect, table, changes.mesh_id, columns, nulls=False)
+        write_columns(self.cursor(), self.db.dialect, table, changes.mesh_id, columns, nulls=False)
         if changes.history:
-            self._journal_where(changes, table, "new", "property", {"q": prop.id}, _of_property)
+            self._journal_where(changes, table, "new", "property", {"q": prop.id})
 
     def _update_positions_staged(self, changes: ChangeSet, columns: dict) -> None:
         """Many positions on PostgreSQL: binary COPY into a scratch table, then one ``UPDATE ... FROM``.
@@ -552,26 +504,14 @@ class Persistence:
         planned as a million index probes; a join with a table the planner
         can size is a hash join.
         """
-        staging, v = schema.position_updates, schema.vertices
+        staging = schema.position_updates
         cursor = self.cursor()
-        dialect = self.st.dialect
+        dialect = self.db.dialect
         cursor.execute(str(CreateTable(staging, if_not_exists=True).compile(dialect=dialect)))
         write_columns(cursor, dialect, staging, changes.mesh_id, {c: columns[c] for c in _POSITION})
-
-        def build():
-            s = staging
-            return (
-                v.update()
-                .where(v.c.mesh_id == s.c.mesh_id, v.c.id == s.c.id)
-                .values(x=s.c.x, y=s.c.y, z=s.c.z, rev=sa.bindparam("r"))
-            )
-
         if changes.history:
-            self._journal_where(
-                changes.mesh_id, v, "old", "staged", {},
-                lambda t: sa.exists().where(staging.c.mesh_id == t.c.mesh_id, staging.c.id == t.c.id),
-            )
-        self.st.get("update_positions_staged", build).run(cursor, {"r": changes.revision})
+            self._journal_where(changes, schema.vertices, "old", "staged", {})
+        self.db.run(_update_staged, {"r": changes.revision})
         cursor.execute(f"TRUNCATE {staging.name}")
 
     def _journal(self, changes: ChangeSet, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
@@ -583,32 +523,19 @@ class Persistence:
         before the transaction (it is net).
         """
         if key == ("id",):
-            cursor, head = self.cursor(), (changes.revision, changes.mesh_id)
+            head = (changes.revision, changes.mesh_id)
             for chunk, size in in_chunks(columns[0]):
-
-                def build(size=size):
-                    return to_history(table, what, "sqlite", table.c.id.in_(in_keys(size)))
-
                 # Every edit pays for this call: the values go in order, without a dict.
                 values = (*head, *padded_values(chunk, size))
-                self.st.get(("journal", what, table.name, size), build).run_ordered(cursor, _in_names(size), values)
+                self.db.run_ordered(_journal_ids(table, what, size), _in_names(size), values)
             return
-        stmt = self.st.get(
-            ("journal", what, table.name, key),
-            lambda: to_history(table, what, "sqlite", *(table.c[c] == sa.bindparam(c) for c in key)),
-        )
-        stmt.run_columns(self.cursor(), {"m": changes.mesh_id, "r": changes.revision}, dict(zip(key, columns)))
+        fixed = {"m": changes.mesh_id, "r": changes.revision}
+        self.db.run_columns(_journal_keys(table, what, key), fixed, dict(zip(key, columns)))
 
-    def _journal_where(self, changes: ChangeSet, table: sa.Table, what: str, name: str, values: dict, where) -> None:
-        """`hestore.journal.to_history` for every row a condition on ``table`` picks: one ``INSERT ... SELECT``."""
-        stmt = self.st.get(
-            ("journal_where", what, table.name, name),
-            lambda: to_history(table, what, self.st.dialect.name, where(table)),
-        )
-        stmt.run(self.cursor(), {"m": changes.mesh_id, "r": changes.revision, **values})
-
-    def _run(self, key: Any, build: Callable[[], Any], mesh_id: int) -> None:
-        self.st.get(key, build).run(self.cursor(), {"m": mesh_id})
+    def _journal_where(self, changes: ChangeSet, table: sa.Table, what: str, where: str, values: dict) -> None:
+        """`hestore.journal.to_history` for every row a condition (`_WHERE`) picks: one ``INSERT ... SELECT``."""
+        picked = _journal_picked(table, what, where, self.db.dialect.name)
+        self.db.run(picked, {"m": changes.mesh_id, "r": changes.revision, **values})
 
     def _write_bulk(self, changes: ChangeSet, bulk) -> None:
         total = sum(len(columns["id"]) for columns in bulk.tables.values())
@@ -619,7 +546,7 @@ class Persistence:
                 report = lambda rows, base=done: bulk.progress(base + rows, total)  # noqa: E731
             table = schema.metadata.tables[name]
             columns = {**columns, "rev": np.full(len(columns["id"]), changes.revision)}
-            write_columns(self.cursor(), self.st.dialect, table, changes.mesh_id, columns, progress=report)
+            write_columns(self.cursor(), self.db.dialect, table, changes.mesh_id, columns, progress=report)
             done += len(columns["id"])
 
     def _write(self, changes: ChangeSet, table: sa.Table, what: str, cols: tuple, rows: list[tuple],
@@ -682,20 +609,4 @@ class Persistence:
             self._write_pg(changes, table, what, cols, columns)
             return
 
-        def build():
-            m = table.c.mesh_id == sa.bindparam("m")
-            if what == "delete":
-                return table.delete().where(m, *(table.c[c] == sa.bindparam(c) for c in cols))
-            if what == "update":
-                key = table.c.id == sa.bindparam("id")
-                return table.update().where(m, key).values({c: sa.bindparam(c) for c in cols[1:]})
-            insert = sqlite_insert(table).values({"mesh_id": sa.bindparam("m"), **{c: sa.bindparam(c) for c in cols}})
-            if what == "upsert":
-                key = [c.name for c in table.primary_key]
-                insert = insert.on_conflict_do_update(
-                    index_elements=key, set_={c: insert.excluded[c] for c in cols if c not in key}
-                )
-            return insert
-
-        stmt = self.st.get((what, table.name, cols), build)
-        stmt.run_columns(self.cursor(), {"m": changes.mesh_id}, dict(zip(cols, columns)))
+        self.db.run_columns(_write_rows(table, what, cols), {"m": changes.mesh_id}, dict(zip(cols, columns)))

@@ -22,11 +22,13 @@ import math
 from typing import Any
 
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import schema, values
 from hestore.arrays import Index
+from hestore.columns import request
 from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError, shown
+from hestore.queries import catalogue as catalogue_q
+from hestore.queries import values as value_rows
 from hestore.unitofwork import UNSET, BulkValues
 from hestore.values import KINDS, Property
 from hestore.session import MeshRef
@@ -48,7 +50,7 @@ __all__ = [
 ]
 
 
-def element_table(kind: str) -> sa.Table:
+def element_table(kind: str):
     """The table of an element kind (`hestore.schema.KINDS`)."""
     return schema.KINDS[kind].table
 
@@ -146,15 +148,6 @@ def remove_property(ref: MeshRef, kind: str, name: str) -> None:
         uow.values.remove_property(_declared(ref, uow.values.catalogue(), kind, name))
 
 
-def _build_catalogue(kind: str):
-    def build():
-        p = schema.properties
-        cols = values.catalogue_columns()
-        return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind).order_by(p.c.id)
-
-    return build
-
-
 def properties(ref: MeshRef, kind: str) -> dict[str, Property]:
     """The properties declared on a kind, by name, in the order they were declared.
 
@@ -167,7 +160,7 @@ def properties(ref: MeshRef, kind: str) -> dict[str, Property]:
     {'uv': Property(kind='halfedge', name='uv', dtype='float64', shape=(2,), default=None)}
     """
     kind = _kind(kind)
-    rows = ref.session.fetch(ref, ("catalogue", kind), _build_catalogue(kind), {})
+    rows = ref.session.fetch(ref, catalogue_q.properties_of_kind(kind), {})
     found = {row[2]: values.property_of(*row) for row in rows}
     if not found:
         ref.session.require(ref)  # a deleted mesh is MeshNotFoundError, not an empty catalogue
@@ -176,26 +169,6 @@ def properties(ref: MeshRef, kind: str) -> dict[str, Property]:
 
 # --------------------------------------------------------------------------
 # One element
-
-
-def _build_lookup(kind: str):
-    def build():
-        p, t = schema.properties, element_table(kind)
-        exists = sa.exists().where(t.c.mesh_id == sa.bindparam("m"), t.c.id == sa.bindparam("i"))
-        cols = (*values.catalogue_columns(), exists)
-        return sa.select(*cols).where(p.c.mesh_id == sa.bindparam("m"), p.c.kind == kind, p.c.name == sa.bindparam("n"))
-
-    return build
-
-
-def _build_values(table: sa.Table):
-    def build():
-        cols = [table.c.part] + [c for c in table.c if c.name.startswith("v")]
-        return sa.select(*cols).where(
-            table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"), table.c.id == sa.bindparam("i")
-        )
-
-    return build
 
 
 def value(ref: MeshRef, kind: str, i: int, name: str) -> Any:
@@ -216,7 +189,7 @@ def value(ref: MeshRef, kind: str, i: int, name: str) -> Any:
         values.check_text(name, "a property name")  # what reaches SQL: no name holds a NUL or a lone surrogate
     except InvalidInputError:
         raise _missing(ref, kind, name) from None
-    found = session.fetch(ref, ("property", kind), _build_lookup(kind), {"i": i, "n": name})
+    found = session.fetch(ref, catalogue_q.property_named(kind, element_table(kind)), {"i": i, "n": name})
     if not found:
         ref.session.require(ref)  # a deleted mesh is MeshNotFoundError, not this
         raise _missing(ref, kind, name)
@@ -225,7 +198,7 @@ def value(ref: MeshRef, kind: str, i: int, name: str) -> Any:
         raise ElementNotFoundError(f"{schema.KINDS[kind].label} {i} does not exist in mesh {ref.name!r}")
     prop = values.property_of(*row)
     table = values.table_of(prop.dtype)
-    rows = session.fetch(ref, ("values", table.name), _build_values(table), {"q": prop.id, "i": i})
+    rows = session.fetch(ref, value_rows.value(table), {"q": prop.id, "i": i})
     return values.value_of(prop, rows)
 
 
@@ -254,11 +227,9 @@ def set_value(ref: MeshRef, kind: str, i: int, name: str, new: Any) -> None:
 # Whole columns
 
 
-def catalogue_in(snap, mesh_id: int) -> dict[tuple[str, str], Property]:
-    """Every property of a mesh by ``(kind, name)``, as a `hestore.session.Snapshot` sees them."""
-    p = schema.properties
-    cols = values.catalogue_columns()
-    found = (values.property_of(*row) for row in snap.rows(sa.select(*cols).where(p.c.mesh_id == mesh_id)))
+def catalogue_in(snap) -> dict[tuple[str, str], Property]:
+    """Every property of a mesh by ``(kind, name)``, as a `hestore.session.Snapshot` of it sees them."""
+    found = (values.property_of(*row) for row in snap.rows(catalogue_q.properties_of))
     return {(prop.kind, prop.name): prop for prop in found}
 
 
@@ -274,15 +245,12 @@ def array_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray):
 
 def _values_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray | None) -> tuple[np.ndarray, Any]:
     """``(ids, values)`` of `array_in`; without ``ids``, every live element's, read in the same statement."""
-    t = element_table(prop.kind)
-    own_ids = [] if ids is not None else [(t, [t.c.id])]
+    own_ids = [] if ids is not None else [request(element_table(prop.kind).name)]
     table = values.table_of(prop.dtype)
-    mine = [table.c.property == prop.id]
     if prop.dtype == "str":
         if ids is None:
             [[ids]] = snap.columns(own_ids)
-        stmt = sa.select(table.c.id, table.c.part, table.c.v0).where(table.c.mesh_id == ref.id, *mine)
-        rows = snap.rows(stmt)
+        rows = snap.rows(value_rows.texts(table), {"q": prop.id})
         row_ids = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
         row_parts = np.zeros(len(rows), dtype=np.int64)
         components = [np.array([r[2] for r in rows], dtype=object)]
@@ -292,20 +260,9 @@ def _values_in(snap, ref: MeshRef, prop: Property, ids: np.ndarray | None) -> tu
         # in SQL; PostgreSQL reads NULL as NaN with coalesce).
         width = min(prop.size or 1, values.WIDTH)
         several = values.parts(prop) > 1
-        comps, nulls = [], None
-        for c in range(width):
-            column = table.c[f"v{c}"]
-            if prop.dtype != "float64":
-                comps.append(sa.func.coalesce(column, 0))
-            elif ref.session.is_sqlite:
-                comps.append(sa.func.coalesce(column, 0.0))
-                bit = sa.type_coerce(column.is_(None), sa.Integer) * (1 << c)  # SQLite: a comparison is 0 or 1
-                nulls = bit if nulls is None else nulls + bit
-            else:
-                comps.append(sa.func.coalesce(column, sa.literal_column("'NaN'::float8", sa.Float(53))))
-        head = [table.c.id, table.c.part] if several else [table.c.id]
-        flags = [] if nulls is None else [nulls]
-        *read, [row_ids, *rest] = snap.columns([*own_ids, (table, [*head, *comps, *flags], mine)])
+        flags = prop.dtype == "float64" and ref.session.is_sqlite
+        floats = None if prop.dtype != "float64" else "flags" if flags else "nan"
+        *read, [row_ids, *rest] = snap.columns([*own_ids, value_rows.request(table, prop.id, width, several, floats)])
         if read:
             [[ids]] = read
         row_parts = rest.pop(0) if several else np.zeros(len(row_ids), dtype=np.int64)
@@ -323,7 +280,7 @@ def _read(ref: MeshRef, kind: str, name: str) -> tuple[Property, np.ndarray, Any
     if not isinstance(name, str):
         raise _missing(ref, kind, name)
     with ref.session.snapshot(ref) as snap:
-        prop = catalogue_in(snap, ref.id).get((kind, name))
+        prop = catalogue_in(snap).get((kind, name))
         if prop is None:
             raise _missing(ref, kind, name)
         return (prop, *_values_in(snap, ref, prop, None))
@@ -371,9 +328,8 @@ def _ids(ids: object, kind: str) -> np.ndarray:
 
 def _live_check(ref: MeshRef, kind: str, ids: np.ndarray) -> bool:
     """Raise unless every id is a live element of ``kind``; return whether they are all of them."""
-    t = element_table(kind)
     with ref.session.snapshot(ref) as snap:
-        [[live]] = snap.columns([(t, [t.c.id])])
+        [[live]] = snap.columns([request(element_table(kind).name)])
     _, ok = Index(live).find(ids)
     if not ok.all():
         raise ElementNotFoundError(

@@ -3,10 +3,16 @@
 This module owns everything that touches a connection: the engine and its
 connections, the transaction and savepoint scopes, the per-mesh writer locks,
 the units of work and their flushing, the committed-read connection, the
-identity of meshes across rollbacks, the thread a store belongs to, and the
-translation of every driver error into a typed `hestore.errors.StoreError`.
-Every other module reads and writes through a `Session` (`Store.session`),
-through the small interface below, and never through its private members.
+identity of meshes across rollbacks (views of the past included, with the
+check that their revision is still kept), the thread a store belongs to,
+and the translation of every driver error into a typed
+`hestore.errors.StoreError`. Every other module reads and writes through a
+`Session` (`Store.session`), through the small interface below, and never
+through its private members: it hands the session a registered query of
+`hestore.queries` and its values, and every statement runs on the
+session's one cursor (`hestore.queries.Executor`), which `traced` watches.
+What history means and does — its revisions, the rows between two,
+restores, prunes — is `hestore.timeline`'s, run inside these scopes.
 
 A session's connection runs its driver in autocommit mode and hestore issues
 ``BEGIN``/``COMMIT``/``SAVEPOINT`` itself, which gives exactly SPEC §4 on
@@ -43,32 +49,23 @@ transaction that is rolled back dies with it: its id may be handed out again
 A session belongs to the thread that opened it. Any use from another thread
 raises `WrongThreadError` before the connection is touched.
 
-Private reach: none. `hestore.columns` and `hestore.persistence` are handed
-the session's DBAPI cursor; nothing outside this module holds it.
+Private reach: none. `hestore.columns`, `hestore.persistence` and the
+executor are handed the session's DBAPI cursor; nothing outside the
+session layer holds it.
 """
 
 from __future__ import annotations
 
 import weakref
 from contextlib import contextmanager
-from datetime import datetime, timezone
 from threading import get_ident
 from typing import Any, Callable, Iterator
 
 import sqlalchemy as sa
 
-from hestore import drivers, migrate, schema, urls
+from hestore import drivers, migrate, urls
 from hestore.columns import read_columns, read_snapshot
-from hestore.journal import (
-    COUNTERS,
-    as_of,
-    as_of_kept,
-    changed_rows,
-    request_as_of,
-    restore_statements,
-    restored,
-    to_history,
-)
+from hestore.journal import as_of, request_as_of
 from hestore.drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
@@ -81,7 +78,9 @@ from hestore.errors import (
     WrongThreadError,
 )
 from hestore.persistence import Persistence
-from hestore.statements import Prepared, StatementCache
+from hestore.queries import Executor, Query
+from hestore.queries import history as history_q
+from hestore.statements import Prepared
 from hestore.unitofwork import UnitOfWork
 
 __all__ = ["Session", "MeshRef", "Snapshot"]
@@ -137,8 +136,10 @@ class Snapshot:
     """
 
     def __init__(
-        self, connection: sa.Connection, mesh_id: int, revision: int, isolated: bool, as_of: int | None = None
+        self, db: Executor, connection: sa.Connection, mesh_id: int, revision: int, isolated: bool,
+        as_of: int | None = None,
     ) -> None:
+        self._db = db
         self._connection = connection
         self._mesh_id = mesh_id
         self._as_of = as_of
@@ -149,13 +150,23 @@ class Snapshot:
         """Columns of several tables of the mesh: `hestore.columns.read_columns`."""
         if self._as_of is not None:
             requests = [request_as_of(request, self._as_of) for request in requests]
-        return read_columns(self._connection, self._mesh_id, requests)
+        return read_columns(self._connection, self._mesh_id, requests, cursor=self._db.cursor())
 
-    def rows(self, stmt) -> list[tuple]:
-        """The rows of one Core statement (bound parameters given in it), in this state."""
-        if self._as_of is not None:
-            stmt = as_of(stmt, sa.literal(self._as_of))
-        return [tuple(row) for row in self._connection.execute(stmt)]
+    def rows(self, q, values: dict | None = None) -> list[tuple]:
+        """The rows of a registered query about the mesh (bound as ``:m``), in this state.
+
+        ``q`` may also be a Core statement with its values bound in it (what
+        `hestore.validation`'s checks of property and history rows build).
+        """
+        db = self._db
+        if not isinstance(q, Query):
+            stmt = q if self._as_of is None else as_of(q, sa.literal(self._as_of))
+            return Prepared(stmt, db.dialect, prepare=False).rows(db.cursor(), {})
+        values = {**(values or {}), "m": self._mesh_id}
+        if self._as_of is None:
+            return db.rows(q, values)
+        values["asof"] = self._as_of
+        return db.as_of(q, kept=False).rows(db.cursor(), values)
 
 
 class _TracingCursor:
@@ -179,6 +190,10 @@ class _TracingCursor:
     def executemany(self, sql, *args, **kwargs):
         self._report(sql, args)
         return self._cursor.executemany(sql, *args, **kwargs)
+
+    def copy(self, sql, *args, **kwargs):
+        self._report(sql, args)
+        return self._cursor.copy(sql, *args, **kwargs)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._cursor, name)
@@ -234,6 +249,8 @@ class Session:
         # (ref, name before) of every rename in the open transaction, to undo on rollback
         self._renamed: list[tuple[MeshRef, str]] = []
         self._failed = False
+        # (callback, parameters) of each `traced` block open, innermost last.
+        self._traces: list[tuple] = []
         self._engine = drivers.make_engine(url, busy_timeout=self.busy_timeout)
         try:
             with self._guard(f"cannot open {self.shown_url}"):
@@ -245,8 +262,10 @@ class Session:
             raise
         self._closed = False
         self.dialect = self._engine.dialect
-        self.statements = StatementCache(self.dialect)
-        self._persistence = Persistence(self.statements, lambda: self._cur)
+        self._db = Executor(self.dialect, lambda: self._cur)
+        # The compiled statements of `fetch`, the hottest path: looked up without a call.
+        self._prepared = self._db.compiled
+        self._persistence = Persistence(self._db)
         try:
             self._ensure_schema()
         except BaseException:
@@ -280,7 +299,8 @@ class Session:
         if not ref.alive or not (ref.base or ref).alive:
             raise self._dead(ref)
 
-    def _writable(self, ref: MeshRef) -> None:
+    def writable(self, ref: MeshRef) -> None:
+        """Raise unless the mesh may be edited: alive, and not a view of the past (`ReadOnlyError`)."""
         self._alive(ref)
         if ref.revision is not None:
             raise ReadOnlyError(
@@ -315,9 +335,9 @@ class Session:
             if self._uows:
                 self._flush()
             if ref.revision is None:
-                self._history_row(ref)
+                self.history_row(ref)
             else:
-                self._kept(ref, ref.revision)
+                self.kept(ref, ref.revision)
 
     # -- mesh identities -----------------------------------------------------
 
@@ -457,7 +477,7 @@ class Session:
         return bool(self._scopes)
 
     @contextmanager
-    def _scope(self, kind: str, *, savepoint: bool) -> Iterator[sa.Connection]:
+    def _scope(self, kind: str, *, savepoint: bool) -> Iterator[Executor]:
         """The one transaction scope.
 
         Outermost: a write transaction, committed when the body succeeds and
@@ -469,7 +489,7 @@ class Session:
             self._begin()
             self._scopes.append(kind)
             try:
-                yield self._conn
+                yield self._db
                 self.check()
                 with self._guard("could not write"):
                     self._flush()
@@ -485,7 +505,7 @@ class Session:
         if not savepoint:
             self._scopes.append(kind)
             try:
-                yield self._conn
+                yield self._db
             except BaseException as exc:
                 if is_driver_error(exc):
                     # The database may have aborted the transaction (PostgreSQL does): end the block.
@@ -502,7 +522,7 @@ class Session:
         saved = (set(self._locked), set(self._changed), len(self._born), len(self._renamed))
         self._scopes.append(kind)
         try:
-            yield self._conn
+            yield self._db
             self.check()
             with self._guard("could not write"):
                 self._flush()
@@ -525,7 +545,7 @@ class Session:
             self._scopes.pop()
 
     @contextmanager
-    def transaction(self, message: str | None = None) -> Iterator[sa.Connection]:
+    def transaction(self, message: str | None = None) -> Iterator[Executor]:
         """A block: one transaction (nested: a savepoint) that commits or rolls back as a whole.
 
         `hestore.Store.transaction` is this. ``message`` names the revisions
@@ -536,8 +556,8 @@ class Session:
         if self._message is None:
             self._message = message
         try:
-            with self._scope("block", savepoint=True) as conn:
-                yield conn
+            with self._scope("block", savepoint=True) as db:
+                yield db
         finally:
             if not self._scopes:
                 self._message = None
@@ -545,8 +565,9 @@ class Session:
     def scope(self):
         """One atomic step of several statements: its own transaction outside a block, a savepoint inside.
 
-        Yields the connection to run them on; pending edits are written before
-        it starts and when it ends.
+        Yields the executor to run them with (`hestore.queries.Executor`, on
+        the session's cursor); pending edits are written before it starts and
+        when it ends.
         """
         return self._scope("step", savepoint=True)
 
@@ -559,7 +580,7 @@ class Session:
         goes on. The mesh is locked for the transaction before its first
         change.
         """
-        self._writable(ref)
+        self.writable(ref)
         with self._scope("edit", savepoint=False):
             uow = self._uow(ref)
             if uow.values.staged:
@@ -578,7 +599,7 @@ class Session:
         waits for a writer and is rolled back. Inside a block it sees the
         block's state; the mesh is not locked for it.
         """
-        self._writable(ref)
+        self.writable(ref)
         if self._scopes:
             with self._guard("could not read"):
                 uow = self._uows.get(ref.id) or self._unlocked_uow(ref)
@@ -617,16 +638,17 @@ class Session:
             revision=int(row[7]) + (0 if ref.id in self._changed else 1), history=bool(row[8]),
         )
 
-    def lock(self, ref: MeshRef) -> None:
+    def lock(self, ref: MeshRef) -> UnitOfWork | None:
         """Take the mesh's writer lock for the open transaction (before reads that an edit relies on).
 
         A set-based edit checks its ids against the mesh before staging its
         write; taking the lock first means nobody can change the mesh in
         between. Outside a transaction this does nothing: use it in `scope`.
+        Returns the mesh's unit of work for the transaction (its
+        ``revision`` is the one the transaction makes).
         """
-        self._writable(ref)
-        if self._scopes:
-            self._uow(ref)
+        self.writable(ref)
+        return self._uow(ref) if self._scopes else None
 
     def _lock(self, ref: MeshRef) -> tuple:
         """Lock the mesh for this transaction; return its row's counters and policy."""
@@ -664,6 +686,13 @@ class Session:
         for mesh_id in dropped:
             del self._uows[mesh_id]
 
+    def flush(self) -> None:
+        """Write every pending edit now (a scope about to change rows itself, a restore)."""
+        self.check()
+        with self._guard("could not write"):
+            if self._uows:
+                self._flush()
+
     def analyze(self, tables) -> None:
         """Refresh the planner's statistics of ``tables`` (PostgreSQL, outside a transaction; else nothing)."""
         self.check()
@@ -675,16 +704,18 @@ class Session:
 
     # -- reading -----------------------------------------------------------------
 
-    def fetch(self, ref: MeshRef, key: Any, build: Callable[[], Any], values: dict) -> list[tuple]:
-        """Rows of a compiled statement about one mesh, seeing the open transaction's edits.
+    def fetch(self, ref: MeshRef, query: Query, values: dict) -> list[tuple]:
+        """Rows of a registered query about one mesh, seeing the open transaction's edits.
+
+        For a view, the query as of its revision (`hestore.queries.Executor.as_of`),
+        reading nothing unless that revision is kept.
 
         Parameters
         ----------
         ref : MeshRef
             The mesh; bound as ``:m``.
-        key, build
-            The statement's cache key, and a function building it (once) from
-            `hestore.schema`'s tables, with named ``bindparam`` placeholders.
+        query : hestore.queries.Query
+            The statement (`hestore.queries.elements`, `hestore.queries.stars`, …).
         values : dict
             The other parameters (the dict is reused: ``m`` is set in it).
         """
@@ -694,12 +725,9 @@ class Session:
             if self._uows:
                 self._flush()
             if ref.revision is None:
-                stmt = self.statements.get(key, build)
+                stmt = self._prepared.get(query) or self._db.prepared(query)
             else:
-                stmt = self.statements.get(
-                    ("as_of", key), lambda: as_of_kept(build(), sa.bindparam("asof"), sa.bindparam("m")),
-                    prepare=False,
-                )
+                stmt = self._db.as_of(query, kept=True)
                 values["asof"] = ref.revision
             values["m"] = ref.id
             cur = self._cur
@@ -707,7 +735,7 @@ class Session:
             rows = cur.fetchall()
             if not rows and ref.revision is not None:
                 # A view's statement reads nothing once its revision is no longer kept: say so, not "empty".
-                self._kept(ref, ref.revision)
+                self.kept(ref, ref.revision)
             return rows
         except HestoreError:
             raise
@@ -726,7 +754,24 @@ class Session:
             yield self._conn
 
     @contextmanager
-    def snapshot(self, ref: MeshRef, *, committed: bool = False) -> Iterator[Snapshot]:
+    def querying(self, ref: MeshRef | None = None, what: str = "could not read") -> Iterator[Executor]:
+        """Run registered queries, pending edits flushed first; driver errors are ``what`` (`StoreError`).
+
+        With ``ref``, the mesh's identity must be alive (its rows may be
+        gone: that is for the queries to find). Yields the executor, whose
+        statements go on the session's cursor.
+        """
+        if ref is None:
+            self.check()
+        else:
+            self._alive(ref)
+        with self._guard(what):
+            if self._uows:
+                self._flush()
+            yield self._db
+
+    @contextmanager
+    def snapshot(self, ref: MeshRef, *, committed: bool = False, kept: tuple = ()) -> Iterator[Snapshot]:
         """Reads of one mesh in one consistent state.
 
         Parameters
@@ -736,75 +781,79 @@ class Session:
             Committed data only: inside a block, read through a second
             connection — except for an in-memory SQLite database, which has
             only the one (`Snapshot.isolated` then says False).
+        kept : tuple of int
+            Revisions of the mesh that must be kept for the reads to hold
+            (a view's own revision always is): checked in the snapshot.
 
         Raises
         ------
         MeshNotFoundError
             The mesh is not in that state.
+        RevisionNotFoundError
+            The view's revision, or one of ``kept``, is not kept.
         """
         self._alive(ref)
         other = committed and self._scopes and not self.is_memory
         with self._guard(f"could not read mesh {ref.name!r}"):
             if other:
                 conn = self._engine.connect()
+                cursor = self._traced(conn.connection.dbapi_connection.cursor())
+                db = self._db.on(lambda: cursor)
             else:
                 if self._uows:
                     self._flush()
-                conn = self._conn
+                conn, db = self._conn, self._db
             try:
                 with read_snapshot(conn):
                     isolated = bool(other) or not self._scopes
                     if ref.revision is None:
-                        m = schema.meshes
-                        revision = conn.execute(sa.select(m.c.revision).where(m.c.id == ref.id)).scalar()
-                        if revision is None:
-                            raise self.missing(ref)
-                        yield Snapshot(conn, ref.id, revision, isolated)
+                        current = self.history_row(ref, db)[0]
+                        with self._kept_during(ref, kept, db):
+                            yield Snapshot(db, conn, ref.id, current, isolated)
                     else:
                         # A revision of this block's own is not in the committed data: it is checked where it is
                         # (no one else can prune a mesh the block has changed: the block holds its lock).
                         mine = other and ref.id in self._changed
-                        with self._kept_during(ref, [ref.revision], self._conn if mine else conn):
-                            yield Snapshot(conn, ref.id, ref.revision, isolated, as_of=ref.revision)
+                        with self._kept_during(ref, (ref.revision, *kept), self._db if mine else db):
+                            yield Snapshot(db, conn, ref.id, ref.revision, isolated, as_of=ref.revision)
             finally:
                 if other:
+                    cursor.close()
                     conn.close()
 
-    # -- history (SPEC §4.1) ------------------------------------------------
+    @contextmanager
+    def consistent(self) -> Iterator[None]:
+        """Run the block's reads in one read snapshot of the session's connection (an open block's own state).
 
-    def _history_row(self, ref: MeshRef, conn: sa.Connection | None = None) -> tuple:
-        m = schema.meshes
-        row = (conn or self._conn).execute(
-            sa.select(m.c.revision, m.c.kept_from, m.c.history).where(m.c.id == ref.id)
-        ).first()
+        Cheaper than `snapshot`, which also reads the revision: a search
+        whose queries must see one committed state (`hestore.traversal`).
+        """
+        self.check()
+        with self._guard("could not read"):
+            if self._uows:
+                self._flush()
+            with read_snapshot(self._conn):
+                yield
+
+    # -- what a view needs ---------------------------------------------------
+
+    def history_row(self, ref: MeshRef, db: Executor | None = None) -> tuple:
+        """``(revision, kept_from, history)`` of the mesh (`MeshNotFoundError` if it is gone); run it in a scope."""
+        row = (db or self._db).first(history_q.mesh_history, {"m": ref.id})
         if row is None:
             raise self.missing(ref)
-        return tuple(row)
+        return row
 
-    def _kept(self, ref: MeshRef, revision: int, conn: sa.Connection | None = None) -> int:
-        """Check that ``revision`` of the mesh can be read (on ``conn``); return the current revision."""
-        current, kept_from, keep = self._history_row(ref, conn)
-        if revision == current:
-            return current
-        if revision < 0 or revision > current:
-            raise RevisionNotFoundError(
-                f"mesh {ref.name!r} has no revision {revision}: it is at revision {current}"
-            )
-        if not keep:
-            raise RevisionNotFoundError(
-                f"mesh {ref.name!r} keeps no history (created with history=False): only its current "
-                f"revision {current} can be read"
-            )
-        if revision < kept_from:
-            raise RevisionNotFoundError(
-                f"revision {revision} of mesh {ref.name!r} is no longer kept: its history was pruned, "
-                f"and the oldest revision kept is {kept_from}"
-            )
-        return current
+    def kept(self, ref: MeshRef, revision: int, db: Executor | None = None) -> int:
+        """Check that ``revision`` of the mesh can be read (`hestore.queries.history.kept`); return the current one.
+
+        Run it in a scope (`querying`, `scope`).
+        """
+        return history_q.kept(ref.name, revision, self.history_row(ref, db))
 
     @contextmanager
-    def _kept_during(self, ref: MeshRef, revisions, conn: sa.Connection) -> Iterator[None]:
-        """Check that ``revisions`` of the mesh are kept for the reads of the block, made on ``conn``.
+    def _kept_during(self, ref: MeshRef, revisions, db: Executor) -> Iterator[None]:
+        """Check that ``revisions`` of the mesh are kept for the reads of the block, made through ``db``.
 
         Checked before the reads, in the same snapshot. A PostgreSQL block
         reads at READ COMMITTED, each statement in a snapshot of its own, so
@@ -815,10 +864,10 @@ class Session:
         """
         def check() -> None:
             for r in revisions:
-                self._kept(ref, r, conn)
+                self.kept(ref, r, db)
 
         check()
-        shared = bool(self._scopes) and not self.is_sqlite and conn is self._conn
+        shared = bool(revisions) and bool(self._scopes) and not self.is_sqlite and db is self._db
         try:
             yield
         except HestoreError:
@@ -832,18 +881,16 @@ class Session:
         """The identity of a read-only view of the mesh as it was at ``revision``.
 
         Reads through it (`fetch`, `snapshot`) see that revision; edits raise
-        `ReadOnlyError`. It lives as long as the mesh does.
+        `ReadOnlyError`. It lives as long as the mesh does, until a rollback
+        takes its revision away or a prune ends it (`end_views`).
 
         Raises
         ------
         RevisionNotFoundError
             The revision was never made, or is no longer kept.
         """
-        self._alive(ref)
-        with self._guard(f"could not read mesh {ref.name!r}"):
-            if self._uows:
-                self._flush()
-            current = self._kept(ref, revision)
+        with self.querying(ref, f"could not read mesh {ref.name!r}"):
+            current = self.kept(ref, revision)
         view = MeshRef(self, ref.id, ref.name, ref.allow_loops, ref.allow_multi_edges, revision=revision, base=ref)
         if revision == current and ref.id in self._changed:
             self._born.append(view)  # a revision of the open transaction: a rollback takes it away
@@ -851,163 +898,25 @@ class Session:
         self._views[ref.id] = [*views, weakref.ref(view)]
         return view
 
-    def oldest_kept(self, ref: MeshRef) -> int:
-        """The oldest revision of the mesh that can still be read (its current one if it keeps no history)."""
-        self._alive(ref)
-        with self._guard(f"could not read the history of mesh {ref.name!r}"):
-            if self._uows:
-                self._flush()
-            current, kept_from, keep = self._history_row(ref)
-        return kept_from if keep else current
+    def end_views(self, ref: MeshRef, oldest: int) -> None:
+        """End the views of the mesh's revisions before ``oldest`` (a prune took them): they raise from now on."""
+        for weak in self._views.get(ref.id, []):
+            view = weak()
+            if view is not None and view.revision < oldest:
+                view.alive = False
 
-    def revisions(self, ref: MeshRef, limit: int | None = None, *, newest_first: bool = True) -> list[tuple]:
-        """The kept revisions ``>= 1``: ``(number, committed_at, message, changes JSON or None, action, target)``.
+    def changed(self, ref: MeshRef) -> bool:
+        """Whether the open transaction has changed the mesh (flushed or not)."""
+        uow = self._uows.get(ref.id)
+        return ref.id in self._changed or (uow is not None and uow.dirty)
 
-        ``action`` and ``target`` say what an undo, redo or revert did (None
-        for an ordinary revision): what `hestore.history` replays.
+    def written(self, ref: MeshRef) -> None:
+        """Record that the open scope changed the mesh's rows itself (a restore): its revision counts, its cache goes.
+
+        The mesh's cached rows are those of before: the next edit reads them again.
         """
-        self._alive(ref)
-        r = schema.revisions
-        with self._guard(f"could not read the history of mesh {ref.name!r}"):
-            if self._uows:
-                self._flush()
-            _, kept_from, keep = self._history_row(ref)
-            if not keep:
-                return []
-            stmt = (
-                sa.select(r.c.number, r.c.committed_at, r.c.message, r.c.changes, r.c.action, r.c.target)
-                .where(r.c.mesh_id == ref.id, r.c.number >= max(kept_from, 1))
-                .order_by(r.c.number.desc() if newest_first else r.c.number)
-            )
-            if limit is not None:
-                stmt = stmt.limit(limit)
-            return [tuple(row) for row in self._conn.execute(stmt)]
-
-    def versions(self, ref: MeshRef, a: int, b: int, *, check: bool = True) -> dict[str, tuple[list, list]]:
-        """Per versioned table, its rows at revisions ``a`` and ``b`` of every key changed in between.
-
-        The catalogue of properties comes whole at both. From revision 0
-        (empty), every row at ``b``. One consistent snapshot; the cost grows
-        with the changes between the two, not with the mesh.
-
-        Raises
-        ------
-        RevisionNotFoundError
-            ``a`` or ``b`` is not kept (with ``check``; without, the rows
-            that history still has are read: a kept revision's changes).
-        """
-        self._alive(ref)
-        with self._guard(f"could not read the history of mesh {ref.name!r}"):
-            if self._uows:
-                self._flush()
-            with read_snapshot(self._conn), self._kept_during(ref, (a, b) if check else (), self._conn):
-                lo, hi = min(a, b), max(a, b)
-                values = {"m": ref.id, "lo": lo, "hi": hi}
-                values.update({f"s_{n}": v for n, v in self._counters_after(ref, lo).items()})
-                values.update({f"e_{n}": v for n, v in self._counters_after(ref, hi).items()})
-                out = {}
-                for table in schema.VERSIONED:
-                    whole = table is schema.properties or lo == 0
-                    rows = []
-                    for r in (a, b):
-                        side = "whole" if whole else "before" if r == lo else "after"
-                        stmt = self.statements.get(
-                            ("versions", table.name, side), lambda t=table, s=side: changed_rows(t, s), prepare=False
-                        )
-                        rows.append(stmt.rows(self._cur, {**values, "r": r}) if r else [])
-                    out[table.name] = (rows[0], rows[1])
-                return out
-
-    def _counters_after(self, ref: MeshRef, revision: int) -> dict:
-        """The id counters after ``revision``: when the next one began, or the mesh's own after the last."""
-        r, m = schema.revisions, schema.meshes
-        names = COUNTERS
-        row = self._conn.execute(
-            sa.select(*(r.c[n] for n in names)).where(r.c.mesh_id == ref.id, r.c.number == revision + 1)
-        ).first()
-        if row is None:
-            row = self._conn.execute(sa.select(*(m.c[n] for n in names)).where(m.c.id == ref.id)).first()
-        return dict(zip(names, row))
-
-    def restorable(self, ref: MeshRef, action: str) -> None:
-        """Raise unless the mesh may be restored now: `InvalidInputError` in a block that changed it already."""
-        self._writable(ref)
-        if ref.id in self._changed or (ref.id in self._uows and self._uows[ref.id].dirty):
-            raise InvalidInputError(
-                f"{action} makes a revision of its own, but this block has already changed mesh {ref.name!r}: "
-                f"call it outside the block, or before the block's other edits of the mesh"
-            )
-
-    def restore(self, ref: MeshRef, target: int, message: str, action: str, acted_on: int) -> int:
-        """Commit a new revision of the mesh whose rows equal those at ``target``; return its number.
-
-        Set-based (`hestore.journal.restore_statements`), recorded in history
-        like any edit: ids, positions and property values come back as they
-        were, and the id counters do not move back, so no id is handed out
-        twice. Its own transaction, or a savepoint of the open block, which
-        must not have changed the mesh already.
-
-        Raises
-        ------
-        RevisionNotFoundError
-            ``target`` is not kept.
-        InvalidInputError
-            The open block has already changed the mesh.
-        """
-        self.restorable(ref, action)
-        with self._scope("step", savepoint=True) as conn:
-            self._flush()
-            uow = self._uow(ref)  # the writer lock, and the revision this makes
-            current = self._kept(ref, target)
-            if not uow.history:
-                raise RevisionNotFoundError(
-                    f"mesh {ref.name!r} keeps no history (created with history=False): there is nothing to {action}"
-                )
-            revision = uow.revision
-            dialect = self._engine.dialect.name
-            since = self._counters_after(ref, target)
-            for table in schema.VERSIONED:
-                statements = restore_statements(table, target, revision, since)
-                if len(statements) > 2:  # rows came back: those that did not exist before get their record
-                    statements.append(to_history(table, "new", dialect, restored(table, target, revision)))
-                for stmt in statements:
-                    # Planned for these revisions each time (see `Prepared`): the best plan depends on them.
-                    Prepared(stmt, self.dialect, prepare=False).run(self._cur, {"m": ref.id, "r": revision})
-            m = schema.meshes
-            conn.execute(m.update().where(m.c.id == ref.id).values(revision=revision))
-            # Its id counters are the mesh's (a restore hands out no id): what later revisions create starts there.
-            counters = self._counters_after(ref, revision)
-            conn.execute(
-                schema.revisions.insert().values(
-                    mesh_id=ref.id, number=revision, committed_at=datetime.now(timezone.utc), message=message,
-                    action=action, target=acted_on, **counters,
-                )
-            )
-            assert current == revision - 1
-            self._changed.add(ref.id)
-            # Its cached rows are those of before: the next edit reads the restored ones.
-            del self._uows[ref.id]
-        return revision
-
-    def prune(self, ref: MeshRef, keep: int) -> int:
-        """Forget all but the newest ``keep`` revisions (the current one included); return the oldest kept."""
-        self._writable(ref)
-        with self._scope("step", savepoint=True) as conn:
-            self._flush()
-            self._uow(ref)
-            current, kept_from, _ = self._history_row(ref)
-            oldest = max(kept_from, current - keep + 1, 0)
-            for history in schema.HISTORY.values():
-                # Rows superseded by the oldest kept revision stay: they say what it changed.
-                conn.execute(history.delete().where(history.c.mesh_id == ref.id, history.c.rev_to < oldest))
-            r = schema.revisions
-            conn.execute(r.delete().where(r.c.mesh_id == ref.id, r.c.number < oldest))
-            m = schema.meshes
-            conn.execute(m.update().where(m.c.id == ref.id).values(kept_from=oldest))
-            for view in self._views.get(ref.id, []):
-                if view() is not None and view().revision < oldest:
-                    view().alive = False
-        return oldest
+        self._changed.add(ref.id)
+        self._uows.pop(ref.id, None)
 
     @contextmanager
     def traced(self, callback: Callable[..., object], *, parameters: bool = False) -> Iterator[None]:
@@ -1020,7 +929,15 @@ class Session:
         self.check()
         plain = self._cur
         self._cur = _TracingCursor(plain, callback, parameters)
+        self._traces.append((callback, parameters))
         try:
             yield
         finally:
             self._cur = plain
+            self._traces.pop()
+
+    def _traced(self, cursor: Any) -> Any:
+        """``cursor`` (of a second connection) reporting to the traces open now, as the session's own does."""
+        for callback, parameters in self._traces:
+            cursor = _TracingCursor(cursor, callback, parameters)
+        return cursor

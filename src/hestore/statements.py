@@ -1,10 +1,11 @@
-"""Precompiled SQL for the hot paths.
+"""Compiled SQL for the hot paths.
 
-SQLAlchemy Core builds every statement from the tables in `hestore.schema`;
-this module compiles each one once per dialect and runs it on the driver's
-own cursor. A point query through ``Connection.execute`` costs about 50 µs
-of Python here, the same query on the cursor about 10 µs, and navigation and
-editing issue thousands of them, so the difference is the product.
+SQLAlchemy Core builds every statement from the tables in `hestore.schema`
+(the statements themselves are `hestore.queries`'); this module compiles
+one for one dialect (`Prepared`) and runs it on the driver's own cursor. A
+point query through ``Connection.execute`` costs about 50 µs of Python
+here, the same query on the cursor about 10 µs, and navigation and editing
+issue thousands of them, so the difference is the product.
 
 Statements with an ``IN`` list are compiled per list length, rounded up to a
 power of two (the list is padded with its last value), so a few compiled
@@ -20,7 +21,7 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 import sqlalchemy as sa
 
 __all__ = [
-    "Prepared", "StatementCache", "in_list_bucket", "in_chunks", "in_keys", "indexed_by", "padded", "padded_values",
+    "Prepared", "in_list_bucket", "in_chunks", "in_keys", "indexed_by", "padded", "padded_values",
 ]
 
 #: Longest ``IN`` list compiled; longer lists are sent in chunks of this size.
@@ -200,24 +201,3 @@ def padded(values: Sequence, size: int, prefix: str = "i") -> dict[str, Any]:
     {'i0': 7, 'i1': 9, 'i2': 4, 'i3': 4}
     """
     return {f"{prefix}{k}": v for k, v in enumerate(padded_values(values, size))}
-
-
-class StatementCache:
-    """Compiled statements of one dialect, built on first use.
-
-    Parameters
-    ----------
-    dialect : sqlalchemy.engine.Dialect
-        The dialect every statement is compiled for.
-    """
-
-    def __init__(self, dialect: sa.engine.Dialect) -> None:
-        self.dialect = dialect
-        self._cache: dict[Any, Prepared] = {}
-
-    def get(self, key: Any, build: Callable[[], Any], *, prepare: bool = True) -> Prepared:
-        """The statement stored under ``key``, compiled from ``build()`` once (``prepare``: see `Prepared`)."""
-        prepared = self._cache.get(key)
-        if prepared is None:
-            prepared = self._cache[key] = Prepared(build(), self.dialect, prepare=prepare)
-        return prepared

@@ -3,7 +3,7 @@
 This module owns the mesh catalogue — creating, finding, listing, renaming,
 copying and deleting meshes by name, and storing imports (it decides the
 name, creates the mesh and hands `hestore.bulk` the mesh to fill) — and
-`open`, the entry point. Its SQL is `hestore.catalogue`'s. Everything that
+`open`, the entry point. Its SQL is `hestore.queries.catalogue`'s. Everything that
 touches the connection (transactions, locks, units of work, flushing,
 threads, error translation) is the `hestore.session.Session` the store
 holds as `Store.session`; the store only says what to do in each scope.
@@ -18,13 +18,12 @@ import math
 from contextlib import contextmanager
 from typing import Iterator
 
-import sqlalchemy as sa
-
-from hestore import bulk, catalogue, interop, schema, urls, values
+from hestore import bulk, interop, schema, urls, values
 from hestore import io as mesh_io
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, shown
 from hestore.journal import created_changes
 from hestore.mesh import Mesh
+from hestore.queries import catalogue
 from hestore.session import Session
 
 __all__ = ["open", "Store", "DEFAULT_URL"]
@@ -33,7 +32,7 @@ __all__ = ["open", "Store", "DEFAULT_URL"]
 DEFAULT_URL = urls.DEFAULT_URL
 
 
-def open(url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -> "Store":
+def open(url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> "Store":
     """Open (and if new, create) a hestore database.
 
     Parameters
@@ -96,7 +95,7 @@ class Store:
         module of hestore reads and writes through.
     """
 
-    def __init__(self, url: str | sa.engine.URL | None = None, *, busy_timeout: float = 5.0) -> None:
+    def __init__(self, url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> None:
         seconds = values.check_real(busy_timeout, "busy_timeout (seconds)")
         if not 0 <= seconds < math.inf:
             raise InvalidInputError(f"busy_timeout must be a number of seconds ≥ 0, not {shown(busy_timeout)}")
@@ -203,8 +202,8 @@ class Store:
         allow_loops = values.check_flag(allow_loops, "allow_loops")
         allow_multi_edges = values.check_flag(allow_multi_edges, "allow_multi_edges")
         history = values.check_flag(history, "history")
-        with self.session.scope() as conn:
-            mesh_id = catalogue.create(conn, name, allow_loops, allow_multi_edges, history)
+        with self.session.scope() as db:
+            mesh_id = catalogue.create(db, name, allow_loops, allow_multi_edges, history)
             ref = self.session.new_ref(mesh_id, name, allow_loops, allow_multi_edges)
         return Mesh(self, ref)
 
@@ -225,8 +224,8 @@ class Store:
         'part'
         """
         name = _checked_name(name)
-        with self.session.reading() as conn:
-            entry = catalogue.find(conn, name)
+        with self.session.querying() as db:
+            entry = catalogue.find(db, name)
         if entry is None:
             known = self.meshes()
             hint = f"; meshes here: {', '.join(known[:10])}" if known else "; the store has no meshes"
@@ -244,8 +243,8 @@ class Store:
         >>> store.meshes()
         ['a', 'b']
         """
-        with self.session.reading() as conn:
-            return catalogue.names(conn)
+        with self.session.querying() as db:
+            return catalogue.names(db)
 
     def delete_mesh(self, name: str) -> None:
         """Delete the mesh called ``name`` and all its elements.
@@ -289,9 +288,9 @@ class Store:
         mesh = self.mesh(name)
         if new_name == mesh.name:
             return mesh
-        with self.session.scope() as conn:
+        with self.session.scope() as db:
             self.session.lock(mesh.ref)
-            catalogue.rename(conn, mesh.id, new_name)
+            catalogue.rename(db, mesh.id, new_name)
             self.session.renamed(mesh.ref, new_name)
         return mesh
 
@@ -333,21 +332,21 @@ class Store:
         source = self.mesh(name)
         if revision is not None:
             revision = values.check_revision(revision)
-        with self.session.scope() as conn:
+        with self.session.scope() as db:
             # Locked: the tables are read by several statements, and must not change between them.
             self.session.lock(source.ref)
-            row = catalogue.row(conn, source.id)
+            row = catalogue.row(db, source.id)
             at = row.revision if revision is None else revision
             self.session.view(source.ref, at)  # checks that the revision is kept
             copy = self.create_mesh(
                 new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges, history=row.history
             )
-            catalogue.copy_counters(conn, copy.id, row)
+            catalogue.copy_counters(db, copy.id, row)
             for table in schema.VERSIONED:
-                catalogue.copy_rows(conn, source.id, None if at == row.revision else at, copy.id, table)
+                catalogue.copy_rows(db, source.id, None if at == row.revision else at, copy.id, table)
             counts = copy.counts()
             catalogue.add_revision(
-                conn, copy.id, 1, f"copy of {source.name!r} at revision {at}",
+                db, copy.id, 1, f"copy of {source.name!r} at revision {at}",
                 created_changes(counts.vertices, counts.halfedges, counts.edges, counts.polygons),
             )
         return copy

@@ -14,15 +14,16 @@ How they read: a search expands a whole batch of vertices with one
 statement — the outgoing half-edges of every vertex of the batch, each with
 its target (its twin's origin), and for a weighted search the target's
 position or the edge's value of the property — an ``IN`` list compiled per
-power-of-two size (`hestore.statements.in_list_bucket`), run through
-`hestore.session.Session.fetch`. So a breadth-first search costs one query
-per level, and the reads see an open block's own edits and, on a view of the
-past (`hestore.Mesh.at`), that revision. The twin (and its origin's vertex
-row, and the edge's value row) is outer-joined on its whole key, as
-`hestore.navigation` does: a view rewrites such a join into two indexed
+power-of-two size (`hestore.statements.in_list_bucket`), one of the stars of
+`hestore.queries.stars`, run through `hestore.session.Session.fetch`. So a
+breadth-first search costs one query per level, and the reads see an open
+block's own edits and, on a view of the past (`hestore.Mesh.at`), that
+revision. The twin (and its origin's vertex row, and the edge's row) is
+outer-joined on its whole key: a view rewrites such a join into two indexed
 joins (`hestore.journal.as_of`), where an inner join would make it read the
-whole table. A search's queries run inside one read snapshot, so it never
-mixes two committed states.
+whole table. A search's queries run inside one read snapshot
+(`hestore.session.Session.consistent`), so it never mixes two committed
+states.
 
 The graph they search is the multigraph of `hestore.graphs` (``"multigraph"``):
 one node per vertex, one edge per mesh edge. Self-loops never shorten a path
@@ -36,14 +37,9 @@ from __future__ import annotations
 
 import heapq
 import math
-from contextlib import contextmanager
-from functools import partial
-from typing import Callable, Iterator, Sequence
+from typing import Sequence
 
-import sqlalchemy as sa
-
-from hestore import properties, schema, values
-from hestore.columns import read_snapshot
+from hestore import properties, values
 from hestore.errors import (
     InvalidInputError,
     InvariantViolationError,
@@ -53,7 +49,9 @@ from hestore.errors import (
     shown,
 )
 from hestore.navigation import exists, missing
-from hestore.statements import in_chunks, in_keys, indexed_by, padded
+from hestore.queries import Query, elements, stars
+from hestore.queries import values as value_rows
+from hestore.statements import in_chunks, padded
 from hestore.values import Property, check_integer
 from hestore.session import MeshRef
 
@@ -80,16 +78,12 @@ _LEAST_IN = 16
 #: when a shorter way to it turns up, so the answer stays exact.
 _BATCH = 16
 
-_H = schema.halfedges
-_V = schema.vertices
-
 
 # --------------------------------------------------------------------------
 # Batched reads
 
 
-@contextmanager
-def _consistent(ref: MeshRef) -> Iterator[None]:
+def _consistent(ref: MeshRef):
     """Run the block's reads in one read snapshot of the session's connection (an open block's own state).
 
     A search's queries then see one committed state even while other
@@ -97,14 +91,11 @@ def _consistent(ref: MeshRef) -> Iterator[None]:
     also reads the revision: a cold query on PostgreSQL pays about a
     millisecond per round trip it makes.
     """
-    with ref.session.reading() as connection, read_snapshot(connection):
-        yield
+    return ref.session.consistent()
 
 
-def _in_rows(
-    ref: MeshRef, name: str, build: Callable[[int], object], ids: Sequence[int], binds: dict | None = None
-) -> list[tuple]:
-    """The rows of ``build(size)`` (a statement with ``IN (:i0 … :i{size-1})``) for ``ids``, in chunks.
+def _in_rows(ref: MeshRef, family: Query, ids: Sequence[int], binds: dict | None = None) -> list[tuple]:
+    """The rows of ``family(size)`` (a statement with ``IN (:i0 … :i{size-1})``) for ``ids``, in chunks.
 
     One statement per chunk of `MAX_IN` ids, compiled once per bucket size
     (`_LEAST_IN` at least); ``binds`` are its other parameters.
@@ -112,53 +103,8 @@ def _in_rows(
     rows: list[tuple] = []
     for chunk, size in in_chunks(ids, _LEAST_IN):
         params = padded(chunk, size) if binds is None else {**padded(chunk, size), **binds}
-        rows.extend(ref.session.fetch(ref, (name, size), lambda size=size: build(size), params))
+        rows.extend(ref.session.fetch(ref, family(size), params))
     return rows
-
-
-def _twin():
-    """The half-edges outer-joined to their twins ``t``, on the twin's whole key (see the module's docstring)."""
-    t = _H.alias("t")
-    return t, _H.outerjoin(t, sa.and_(t.c.mesh_id == _H.c.mesh_id, t.c.id == _H.c.twin))
-
-
-def _build_star(size: int):
-    t, j = _twin()
-    stmt = (
-        sa.select(_H.c.origin, t.c.origin, _H.c.edge)
-        .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_origin")
-
-
-def _build_placed_star(size: int):
-    t, j = _twin()
-    w = _V.alias("w")
-    j = j.outerjoin(w, sa.and_(w.c.mesh_id == _H.c.mesh_id, w.c.id == t.c.origin))
-    stmt = (
-        sa.select(_H.c.origin, t.c.origin, _H.c.edge, w.c.x, w.c.y, w.c.z)
-        .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_origin")
-
-
-def _build_values(table: sa.Table, size: int):
-    """``(id, v0)`` of the value rows of the scalar property ``:q`` of the edges ``:i0 …`` that have one.
-
-    A statement of its own, after the star, rather than a join in it: its
-    every plan is a probe of the value table's key per edge, where
-    PostgreSQL, planning a join to a value table it has no statistics of
-    yet (values written since its last ``ANALYZE``), read the property's
-    whole column for every batch (13 s instead of 16 ms for a path on a
-    90,601-vertex grid).
-    """
-    # No condition on ``part``: a scalar's one row is part 0, and a planner without statistics probes the key
-    # prefix it names, skipping ``id`` (reading the property's whole column) if it names ``part`` too.
-    return sa.select(table.c.id, table.c.v0).where(
-        table.c.mesh_id == sa.bindparam("m"), table.c.property == sa.bindparam("q"), table.c.id.in_(in_keys(size))
-    )
 
 
 def _broken(ref: MeshRef, origin: int) -> InvariantViolationError:
@@ -170,17 +116,11 @@ def _broken(ref: MeshRef, origin: int) -> InvariantViolationError:
 
 def _stars(ref: MeshRef, ids: Sequence[int]) -> list[tuple[int, int, int]]:
     """``(origin, target, edge)`` of every outgoing half-edge of the vertices ``ids``: a query per `MAX_IN` of them."""
-    rows = _in_rows(ref, "traversal_star", _build_star, ids)
+    rows = _in_rows(ref, stars.batch, ids)
     for origin, target, _edge in rows:
         if target is None:
             raise _broken(ref, origin)
     return rows
-
-
-def _build_vertices(size: int):
-    return sa.select(_V.c.id, _V.c.x, _V.c.y, _V.c.z).where(
-        _V.c.mesh_id == sa.bindparam("m"), _V.c.id.in_(in_keys(size))
-    )
 
 
 def vertex_rows(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
@@ -191,23 +131,11 @@ def vertex_rows(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
     ElementNotFoundError
         One of them does not exist (`MeshNotFoundError`: the mesh is gone).
     """
-    rows = sorted(_in_rows(ref, "traversal_vertices", _build_vertices, ids))
+    rows = sorted(_in_rows(ref, elements.vertices, ids))
     if len(rows) != len(ids):
         found = {r[0] for r in rows}
         raise missing(ref, "vertex", min(i for i in ids if i not in found))
     return rows
-
-
-def _build_among(size: int):
-    t, j = _twin()
-    e = schema.edges
-    j = j.outerjoin(e, sa.and_(e.c.mesh_id == _H.c.mesh_id, e.c.id == _H.c.edge))
-    stmt = (
-        sa.select(_H.c.id, _H.c.origin, _H.c.twin, _H.c.edge, _H.c.polygon, t.c.origin, e.c.halfedge)
-        .select_from(j)
-        .where(_H.c.mesh_id == sa.bindparam("m"), _H.c.origin.in_(in_keys(size)))
-    )
-    return indexed_by(stmt, _H, "ix_halfedges_origin")
 
 
 def halfedges_among(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
@@ -219,7 +147,7 @@ def halfedges_among(ref: MeshRef, ids: Sequence[int]) -> list[tuple]:
     kept half-edge is kept, so every edge comes with both its half-edges.
     """
     among = set(ids)
-    rows = _in_rows(ref, "traversal_among", _build_among, ids)
+    rows = _in_rows(ref, stars.among, ids)
     for row in rows:
         if row[5] is None or row[6] is None:
             raise _broken(ref, row[1])
@@ -363,7 +291,7 @@ class _Lengths(_Counts):
         self.goal = None if goal is None else self.place[goal]
 
     def rows(self, batch: Sequence[int]) -> list[tuple]:
-        return _in_rows(self.ref, "traversal_placed_star", _build_placed_star, batch)
+        return _in_rows(self.ref, stars.placed, batch)
 
     def weigh(self, row: tuple) -> float:
         origin, target, edge, x, y, z = row
@@ -394,11 +322,10 @@ class _Values:
 
     def rows(self, batch: Sequence[int]) -> list[tuple]:
         """``(origin, target, edge, has a value, value)``: the stars, then their edges' values, a query each."""
-        stars = _stars(self.ref, batch)
-        build = partial(_build_values, self.table)
-        edges = sorted({edge for _, _, edge in stars})
-        found = dict(_in_rows(self.ref, f"traversal_{self.table.name}", build, edges, {"q": self.prop.id}))
-        return [(origin, target, edge, edge in found, found.get(edge)) for origin, target, edge in stars]
+        out = _stars(self.ref, batch)
+        edges = sorted({edge for _, _, edge in out})
+        found = dict(_in_rows(self.ref, value_rows.of_edges(self.table), edges, {"q": self.prop.id}))
+        return [(origin, target, edge, edge in found, found.get(edge)) for origin, target, edge in out]
 
     def weigh(self, row: tuple) -> int | float:
         edge, has, value = row[2:]

@@ -39,7 +39,10 @@ import sqlalchemy as sa
 
 from hestore.errors import InvalidInputError
 
-__all__ = ["DEFAULT_URL", "ENVIRONMENT", "resolve", "check_path", "shown", "is_memory", "sqlite_path"]
+__all__ = ["URL", "DEFAULT_URL", "ENVIRONMENT", "resolve", "check_path", "shown", "is_memory", "sqlite_path"]
+
+#: A database URL as SQLAlchemy parses it (what `resolve` returns): the type, for modules that do not import it.
+URL = sa.engine.URL
 
 #: Where a store goes when given no URL and ``$HESTORE_URL`` is unset.
 DEFAULT_URL = "sqlite:///hestore.db"
