@@ -54,11 +54,12 @@ def missing(ref: MeshRef, kind: str, i: int) -> ElementNotFoundError:
 
 
 _TABLES = {"vertex": schema.vertices, "half-edge": schema.halfedges, "edge": schema.edges, "polygon": schema.polygons}
+_EXISTS = {kind: elements.exists(table) for kind, table in _TABLES.items()}
 
 
 def exists(ref: MeshRef, kind: str, i: int) -> None:
     """Raise unless element ``i`` of ``kind`` (``"vertex"``, ``"half-edge"``, ``"edge"``, ``"polygon"``) exists."""
-    if not _rows(ref, elements.exists(_TABLES[kind]), {"i": i}):
+    if not _rows(ref, _EXISTS[kind], {"i": i}):
         raise missing(ref, kind, i)
 
 
@@ -100,6 +101,8 @@ def vertex_row(ref: MeshRef, v: int) -> tuple:
     return rows[0]
 
 
+_STARS = {targets: stars.of_vertex(targets) for targets in (False, True)}
+
 #: Fields of a `star` row: the half-edge, its prev and twin; then its edge and polygon, or (``targets``) its target.
 STAR_ID, STAR_PREV, STAR_TWIN = 1, 2, 3
 STAR_EDGE, STAR_POLYGON = 4, 5
@@ -116,7 +119,7 @@ def star(ref: MeshRef, v: int, *, targets: bool = False) -> list[tuple]:
     twin(prev(h))``, so the row after ``r`` is the one whose twin is ``r``'s
     prev.
     """
-    rows = _rows(ref, stars.of_vertex(targets), {"i": v})
+    rows = _rows(ref, _STARS[targets], {"i": v})
     if not rows:
         raise missing(ref, "vertex", v)
     start = rows[0][0]
