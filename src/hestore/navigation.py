@@ -54,9 +54,13 @@ def missing(ref: MeshRef, kind: str, i: int) -> ElementNotFoundError:
     return ElementNotFoundError(f"{label} {i} does not exist in mesh {ref.name!r} (removed, or never created)")
 
 
+# Looked up once per kind, so a point read pays no lookup of its query.
+_EXISTS = {name: elements.exists(kind.table) for name, kind in schema.KINDS.items()}
+
+
 def exists(ref: MeshRef, kind: str, i: int) -> None:
     """Raise unless element ``i`` of ``kind`` (a key of `hestore.schema.KINDS`) exists."""
-    if not _rows(ref, elements.exists(schema.KINDS[kind].table), {"i": i}):
+    if not _rows(ref, _EXISTS[kind], {"i": i}):
         raise missing(ref, kind, i)
 
 
@@ -98,6 +102,8 @@ def vertex_row(ref: MeshRef, v: int) -> tuple:
     return rows[0]
 
 
+_STARS = {targets: stars.of_vertex(targets) for targets in (False, True)}
+
 #: Fields of a `star` row: the half-edge, its prev and twin; then its edge and polygon, or (``targets``) its target.
 STAR_ID, STAR_PREV, STAR_TWIN = 1, 2, 3
 STAR_EDGE, STAR_POLYGON = 4, 5
@@ -114,7 +120,7 @@ def star(ref: MeshRef, v: int, *, targets: bool = False) -> list[tuple]:
     twin(prev(h))``, so the row after ``r`` is the one whose twin is ``r``'s
     prev.
     """
-    rows = _rows(ref, stars.of_vertex(targets), {"i": v})
+    rows = _rows(ref, _STARS[targets], {"i": v})
     if not rows:
         raise missing(ref, "vertex", v)
     start = rows[0][0]

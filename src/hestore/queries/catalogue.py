@@ -5,7 +5,7 @@ named meshes — finding one by name, listing them, creating, renaming, and
 the rows a copy takes from its source (`copy_rows`, which reads the source
 as of a revision with `hestore.journal.as_of`) together with the copy's
 first revision record — and the reads of a mesh's catalogue of properties
-(`properties_of`, `property_of_kind`, `property_named`), which the unit of
+(`properties_of`, `properties_of_kind`, `property_named`), which the unit of
 work and `hestore.properties` share. `hestore.store` calls the functions
 with the executor of a `hestore.session.Session` scope, so each step is
 atomic; the session's own rows of a mesh (its counters and lock, its
