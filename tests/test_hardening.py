@@ -824,11 +824,11 @@ def test_options_are_one_of_their_strings(store, triangle_mesh, files):
     }
     refuses_all(store, calls, NOT_CHOICES)
     # None means something here: count the edges, the default view.
-    optional = {
-        "shortest_path(weight=x)": lambda x: mesh.shortest_path(a, b, weight=x),
-        "plot(view=x)": lambda x: mesh.plot(view=x),
-    }
+    optional = {"plot(view=x)": lambda x: mesh.plot(view=x)}
     refuses_all(store, optional, [x for x in NOT_CHOICES if x is not None])
+    # A weight is "length" or the name of an edge property: a text that names none is a property not found.
+    weight = {"shortest_path(weight=x)": lambda x: mesh.shortest_path(a, b, weight=x)}
+    refuses_all(store, weight, [x for x in NOT_CHOICES if x is not None], (InvalidInputError, PropertyNotFoundError))
 
 
 def test_names_and_texts_are_text_sql_can_hold(store, triangle_mesh, files):
