@@ -282,19 +282,8 @@ class UnitOfWork:
         ``(next_vertex, next_edge, next_polygon, next_property)`` as stored.
     allow_loops, allow_multi_edges : bool
         The mesh's policy.
-    catalogue : callable, optional
-        ``catalogue(mesh_id) -> list[Property]``: the declared properties
-        (`hestore.persistence.Persistence.catalogue`), loaded on first need.
-    has_properties : bool
-        Whether the mesh has any property as stored (if not, the catalogue
-        is never loaded for the deletions of a flush).
-    read_values : callable, optional
-        ``read_values(mesh_id, props, ids) -> {(property id, id): rows}``:
-        stored values (`hestore.persistence.Persistence.values`), read when
-        an operator derives new elements' values from old ones (`derive`).
-    read_positions : callable, optional
-        ``read_positions(mesh_id, ids) -> {id: (x, y, z) or None}``: stored
-        positions (`hestore.persistence.Persistence.positions`).
+    catalogue, has_properties, read_values, read_positions
+        Handed to the value cache, `ValueWork` (``uow.values``), which says what they are.
     revision : int
         The revision the open transaction makes (the stored one plus one).
     history : bool
