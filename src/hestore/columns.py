@@ -26,7 +26,13 @@ import sqlalchemy as sa
 from hestore import schema
 from hestore.statements import Prepared
 
-__all__ = ["read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request", "request"]
+__all__ = [
+    "Connection", "read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request", "request",
+    "sides_request",
+]
+
+#: What `read_columns` reads through: a SQLAlchemy connection (named here for the modules above the session).
+Connection = sa.Connection
 
 _FETCH_ROWS = 65536
 _WRITE_ROWS = 131072
@@ -69,6 +75,22 @@ def request(table: str, *names: str) -> tuple:
     """
     t = schema.metadata.tables[table]
     return (t, [t.c.id, *(sa.func.coalesce(t.c[n], -1) if t.c[n].nullable else t.c[n] for n in names)])
+
+
+def sides_request(*names: str) -> tuple:
+    """The `read_columns` request for half-edge ids, each one's side, then the columns ``names``.
+
+    Only free half-edges need ``next`` (for boundary cycles), and only
+    others a polygon: one column carries both, ``polygon`` or ``-1 - next``
+    (ids are >= 0), which saves reading a whole column row by row.
+
+    >>> table, cols = sides_request("origin")
+    >>> table.name, len(cols), str(cols[-1])
+    ('halfedges', 3, 'halfedges.origin')
+    """
+    h = schema.halfedges
+    side = sa.cast(sa.case((h.c.polygon.is_(None), -1 - h.c.next), else_=h.c.polygon), sa.BigInteger)
+    return (h, [h.c.id, side, *(h.c[n] for n in names)])
 
 
 @contextmanager

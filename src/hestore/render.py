@@ -59,7 +59,7 @@ import numpy as np
 
 from hestore import schema, summary, validation
 from hestore.arrays import Index, dense, polygon_halfedges, positions as position_array, restricted_cycles
-from hestore.columns import position_request
+from hestore.columns import position_request, request
 from hestore.errors import InvalidInputError, Violation, require, shown
 from hestore.io import file_errors
 from hestore.progress import check_progress
@@ -163,13 +163,12 @@ class _Scene:
 
 
 def _read(ref: MeshRef) -> _Scene:
-    h, p = schema.halfedges, schema.polygons
     # The half-edges' polygon column is not read: the polygon loops walked from the polygons' half-edges
     # are exactly the half-edges that have one (on a valid mesh; `check` reports any other), and reading a
     # column of a few million rows costs more than the walk. The edges table is read only for violations.
     with ref.session.snapshot(ref) as snap:
         (v_id, x, y, z, missing), (he_id, origin, nxt, twin), (p_id, p_he) = snap.columns(
-            [position_request(), (h, [h.c.id, h.c.origin, h.c.next, h.c.twin]), (p, [p.c.id, p.c.halfedge])]
+            [position_request(), request("halfedges", "origin", "next", "twin"), request("polygons", "halfedge")]
         )
         revision = snap.revision
     vertices, halfedges = Index(v_id), Index(he_id)
@@ -600,9 +599,8 @@ def _violations(
     halfedges = found(scene.he_id, ids["halfedge"])
     edge_halfedges = np.zeros(0, dtype=np.int64)
     if ids["edge"]:
-        e = schema.edges
         with ref.session.snapshot(ref) as snap:
-            [(e_id, e_halfedge)] = snap.columns([(e, [e.c.id, e.c.halfedge])])
+            [(e_id, e_halfedge)] = snap.columns([request("edges", "halfedge")])
         edge_halfedges = Index(scene.he_id).get(e_halfedge[found(e_id, ids["edge"])])
     lines = np.unique(np.r_[halfedges, edge_halfedges[edge_halfedges >= 0]]).astype(np.int64)
     lines = lines[ends_placed[lines]]

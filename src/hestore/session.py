@@ -65,7 +65,7 @@ import sqlalchemy as sa
 
 from hestore import drivers, migrate, urls
 from hestore.columns import read_columns, read_snapshot
-from hestore.journal import as_of, request_as_of
+from hestore.journal import request_as_of
 from hestore.drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
@@ -80,7 +80,6 @@ from hestore.errors import (
 from hestore.persistence import Persistence
 from hestore.queries import Executor, Query
 from hestore.queries import history as history_q
-from hestore.statements import Prepared
 from hestore.unitofwork import UnitOfWork
 
 __all__ = ["Session", "MeshRef", "Snapshot"]
@@ -152,16 +151,9 @@ class Snapshot:
             requests = [request_as_of(request, self._as_of) for request in requests]
         return read_columns(self._connection, self._mesh_id, requests, cursor=self._db.cursor())
 
-    def rows(self, q, values: dict | None = None) -> list[tuple]:
-        """The rows of a registered query about the mesh (bound as ``:m``), in this state.
-
-        ``q`` may also be a Core statement with its values bound in it (what
-        `hestore.validation`'s checks of property and history rows build).
-        """
+    def rows(self, q: Query, values: dict | None = None) -> list[tuple]:
+        """The rows of a registered query about the mesh (bound as ``:m``), in this state."""
         db = self._db
-        if not isinstance(q, Query):
-            stmt = q if self._as_of is None else as_of(q, sa.literal(self._as_of))
-            return Prepared(stmt, db.dialect, prepare=False).rows(db.cursor(), {})
         values = {**(values or {}), "m": self._mesh_id}
         if self._as_of is None:
             return db.rows(q, values)

@@ -45,10 +45,9 @@ from dataclasses import dataclass, field, fields
 from typing import Callable, NamedTuple
 
 import numpy as np
-import sqlalchemy as sa
 
-from hestore import schema
 from hestore.arrays import Index, component_roots, cycle_positions, dense, groups, restricted_cycles
+from hestore.columns import request, sides_request
 from hestore.progress import check_progress
 from hestore.session import MeshRef
 
@@ -199,15 +198,10 @@ def _read(ref: MeshRef, *, sides: bool, links: bool) -> _Tables:
     Half-edge ids always; ``sides``: each half-edge's polygon, and ``next``
     where it is free; ``links``: ``origin`` and ``twin``, and the vertex ids.
     """
-    v, h = schema.vertices, schema.halfedges
-    # Only free half-edges need ``next`` (for boundary cycles), and only
-    # others a polygon: one column carries both, ``polygon`` or ``-1 - next``
-    # (ids are >= 0), which saves reading a whole column row by row.
-    side = sa.cast(sa.case((h.c.polygon.is_(None), -1 - h.c.next), else_=h.c.polygon), sa.BigInteger)
-    columns = [h.c.id] + ([side] if sides else []) + ([h.c.origin, h.c.twin] if links else [])
-    requests = [(h, columns)]
+    names = ("origin", "twin") if links else ()
+    requests = [sides_request(*names) if sides else request("halfedges", *names)]
     if links:
-        requests.append((v, [v.c.id]))
+        requests.append(request("vertices"))
     with ref.session.snapshot(ref) as snap:
         tables = snap.columns(requests)
     he_id, *more = tables[0]

@@ -73,13 +73,15 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 import numpy as np
-import sqlalchemy as sa
 
 from hestore import schema
 from hestore.arrays import Index, TopologyArrays, first_per_group, restricted_cycles
-from hestore.columns import read_columns
+from hestore.columns import Connection, read_columns, request
 from hestore.errors import InvalidInputError, Violation
 from hestore.progress import check_progress
+from hestore.queries import catalogue as catalogue_q
+from hestore.queries import history as history_q
+from hestore.queries import values as value_rows
 from hestore.session import MeshRef
 
 __all__ = [
@@ -141,23 +143,14 @@ _KIND_RANK = {kind: i for i, kind in enumerate(KINDS)}
 # Loading
 
 
-def _table_columns(table: sa.Table) -> list:
-    """The columns `TopologyArrays` takes from ``table``: non-NULL bigints (NULL -> -1)."""
-    null = sa.literal(-1, sa.BigInteger)
-    c = table.c
-    if table is schema.halfedges:
-        polygon = sa.cast(sa.func.coalesce(c.polygon, null), sa.BigInteger)
-        return [c.id, c.origin, c.next, c.prev, c.twin, c.edge, polygon]
-    if table is schema.vertices:
-        return [c.id, sa.cast(sa.func.coalesce(c.halfedge, null), sa.BigInteger)]
-    return [c.id, c.halfedge]
+#: The `hestore.columns.read_columns` requests of `TopologyArrays`' columns, table by table (NULL -> -1).
+_REQUESTS = [
+    request(schema.KINDS[kind].table.name, *(name.split("_", 1)[1] for name in names[1:]))
+    for kind, names in TopologyArrays.GROUPS
+]
 
 
-_TABLES = [schema.KINDS[kind].table for kind, _ in TopologyArrays.GROUPS]
-_REQUESTS = [(t, _table_columns(t)) for t in _TABLES]
-
-
-def load_arrays(connection: sa.Connection, mesh_id: int, *, use_copy: bool | None = None) -> TopologyArrays:
+def load_arrays(connection: Connection, mesh_id: int, *, use_copy: bool | None = None) -> TopologyArrays:
     """Read the topology of one mesh into int64 arrays, as one consistent state.
 
     Every table is read with one ``SELECT`` filtered by ``mesh_id``, without
@@ -834,22 +827,18 @@ def check(ref: MeshRef, progress: Callable[[str, int, int], object] | None = Non
         report("check", 0, 3)
         found = check_arrays(arrays, allow_loops=ref.allow_loops, allow_multi_edges=ref.allow_multi_edges)
         report("check", 1, 3)
-        found += _property_violations(snap, ref.id, arrays)
+        found += _property_violations(snap, arrays)
         report("check", 2, 3)
         if ref.revision is None:  # a view is read from the history this checks
-            found += _history_violations(snap, ref.id)
+            found += _history_violations(snap)
         report("check", 3, 3)
         return found
 
 
-def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violation]:
+def _property_violations(snap, a: TopologyArrays) -> list[Violation]:
     """``PROPERTY_REF``: value rows of undeclared properties or of elements that do not exist."""
-    p = schema.properties
-    catalogue = {pid: (kind, name) for pid, kind, name in snap.rows(
-        sa.select(p.c.id, p.c.kind, p.c.name).where(p.c.mesh_id == mesh_id)
-    )}
-    tables = schema.VALUE_TABLES
-    columns = snap.columns([(t, [t.c.id, t.c.property], [t.c.part == 0]) for t in tables])
+    catalogue = {pid: (kind, name) for pid, kind, name, *_ in snap.rows(catalogue_q.properties_of)}
+    columns = snap.columns(value_rows.owners())
     out = []
     for ids, props in columns:
         for pid in np.unique(props).tolist():
@@ -871,41 +860,24 @@ def _property_violations(snap, mesh_id: int, a: TopologyArrays) -> list[Violatio
     return sorted(out, key=lambda v: (v.kind, v.ids))
 
 
-def _history_violations(snap, mesh_id: int) -> list[Violation]:
+def _history_violations(snap) -> list[Violation]:
     """``HISTORY``: the row versions and revision records against the mesh's revision. Set-based, 100 per kind."""
-    m, r = schema.meshes, schema.revisions
-    [(current, kept_from, keep)] = snap.rows(
-        sa.select(m.c.revision, m.c.kept_from, m.c.history).where(m.c.id == mesh_id)
-    )
+    [(current, kept_from, keep)] = snap.rows(history_q.mesh_history)
     out = []
     for table in schema.VERSIONED:
-        history = schema.HISTORY[table.name]
         kind = schema.KIND_OF_TABLE.get(table.name, "property")
-        key = [c for c in table.primary_key if c.name != "mesh_id"]
-        hkey = [history.c[c.name] for c in key]
-        mine, theirs = table.c.mesh_id == mesh_id, history.c.mesh_id == mesh_id
-        for row in snap.rows(sa.select(*key, table.c.rev).where(mine, table.c.rev > current).limit(100)):
+        for row in snap.rows(history_q.newer(table), {"current": current}):
             out.append(Violation("HISTORY", kind, _ids(row), f"{kind} {_ids(row)[0]} was written by revision "
                                  f"{row[-1]}, after the mesh's revision {current}"))
-        bad = (history.c.rev_to > current) | (history.c.rev_to < 1) | (history.c.rev >= history.c.rev_to)
-        for row in snap.rows(sa.select(*hkey, history.c.rev, history.c.rev_to).where(theirs, bad).limit(100)):
+        for row in snap.rows(history_q.bad_versions(table), {"current": current}):
             out.append(Violation("HISTORY", kind, _ids(row), f"a kept version of {kind} {_ids(row)[0]} runs from "
                                  f"revision {row[-2]} to {row[-1]}, which the mesh at revision {current} cannot have"))
-        latest = sa.select(*hkey, sa.func.max(history.c.rev_to).label("until")).where(theirs).group_by(*hkey).subquery()
-        stale = (
-            sa.select(*key, table.c.rev, latest.c.until)
-            .join_from(table, latest, sa.and_(*(c == latest.c[c.name] for c in key)))
-            .where(mine, table.c.rev < latest.c.until)
-            .limit(100)
-        )
-        for row in snap.rows(stale):
+        for row in snap.rows(history_q.stale(table)):
             out.append(Violation("HISTORY", kind, _ids(row), f"{kind} {_ids(row)[0]} is a version of revision "
                                  f"{row[-2]}, older than revision {row[-1]}, which superseded an earlier one"))
     if keep and current >= 1:
         first = max(kept_from, 1)
-        recorded = {n for (n,) in snap.rows(
-            sa.select(r.c.number).where(r.c.mesh_id == mesh_id, r.c.number >= first, r.c.number <= current)
-        )}
+        recorded = {n for (n,) in snap.rows(history_q.recorded, {"first": first, "current": current})}
         missing = [n for n in range(first, current + 1) if n not in recorded]
         out.extend(Violation("HISTORY", "revision", (n,), f"revision {n} is kept but has no record")
                    for n in missing[:100])

@@ -3,9 +3,7 @@
 Every statement hestore sends is built here or in the storage modules
 below the session (`hestore.persistence`'s writes, `hestore.journal`'s
 history rewrites, `hestore.columns`' whole-column reads and the requests
-that name them), not by an algorithm — but for the column requests and
-checks that `hestore.summary`, `hestore.validation` and `hestore.render`
-still build, on their way here. A statement is a `Query`: a name, registered once, and a function
+that name them), never by an algorithm. A statement is a `Query`: a name, registered once, and a function
 that builds it from `hestore.schema`'s tables with SQLAlchemy Core and named
 ``bindparam`` placeholders. A family of statements — an ``IN`` list per
 size, one statement per table — is one query with variants:
@@ -21,7 +19,8 @@ The modules, by topic:
   rename, copy) and each mesh's catalogue of properties;
 - `hestore.queries.values`: property values, one element's or a batch's;
 - `hestore.queries.history`: revisions, a mesh's history row, the rows
-  changed between two revisions, restores and prunes.
+  changed between two revisions, restores and prunes, and the checks of
+  the kept history against the current state.
 
 `Executor` runs them: each compiled once for the session's dialect
 (`hestore.statements.Prepared`) and sent on the session's DBAPI cursor —

@@ -22,7 +22,7 @@ from hestore.queries import query
 __all__ = [
     "mesh_history", "revisions", "counters_at", "counters", "changed", "restore", "restore_new", "set_revision",
     "add_revision", "revision_insert", "forget_history", "forget_revisions", "set_kept_from", "now", "timestamp",
-    "kept",
+    "kept", "newer", "bad_versions", "stale", "recorded",
 ]
 
 _M, _R = schema.meshes, schema.revisions
@@ -155,6 +155,60 @@ def forget_revisions():
 def set_kept_from():
     """Set the oldest kept revision of mesh ``:m`` to ``:oldest``."""
     return _M.update().where(_M.c.id == sa.bindparam("m")).values(kept_from=sa.bindparam("oldest"))
+
+
+# The checks of `hestore.validation`'s ``HISTORY``: each reads at most 100 offending rows of mesh ``:m``, whose
+# revision is ``:current``; a row is its element's key (for a value row, the element and the property), then revisions.
+
+
+def _key(table: sa.Table) -> list:
+    """The primary key of a versioned table but ``mesh_id``."""
+    return [c for c in table.primary_key if c.name != "mesh_id"]
+
+
+@query("history.newer", prepare=False)
+def newer(table: sa.Table):
+    """The current rows of ``table`` written by a revision after ``:current``: their key and ``rev``."""
+    return sa.select(*_key(table), table.c.rev).where(
+        table.c.mesh_id == sa.bindparam("m"), table.c.rev > sa.bindparam("current")
+    ).limit(100)
+
+
+@query("history.bad_versions", prepare=False)
+def bad_versions(table: sa.Table):
+    """The kept versions of ``table``'s rows that end after ``:current``, before revision 1, or before they begin."""
+    h = schema.HISTORY[table.name]
+    bad = (h.c.rev_to > sa.bindparam("current")) | (h.c.rev_to < 1) | (h.c.rev >= h.c.rev_to)
+    return sa.select(*(h.c[c.name] for c in _key(table)), h.c.rev, h.c.rev_to).where(
+        h.c.mesh_id == sa.bindparam("m"), bad
+    ).limit(100)
+
+
+@query("history.stale", prepare=False)
+def stale(table: sa.Table):
+    """The current rows of ``table`` older than the last version they superseded: key, ``rev``, that version's end."""
+    h, key = schema.HISTORY[table.name], _key(table)
+    hkey = [h.c[c.name] for c in key]
+    latest = (
+        sa.select(*hkey, sa.func.max(h.c.rev_to).label("until"))
+        .where(h.c.mesh_id == sa.bindparam("m"))
+        .group_by(*hkey)
+        .subquery()
+    )
+    return (
+        sa.select(*key, table.c.rev, latest.c.until)
+        .join_from(table, latest, sa.and_(*(c == latest.c[c.name] for c in key)))
+        .where(table.c.mesh_id == sa.bindparam("m"), table.c.rev < latest.c.until)
+        .limit(100)
+    )
+
+
+@query("history.recorded")
+def recorded():
+    """The numbers of mesh ``:m``'s revision records from ``:first`` to ``:current``."""
+    return sa.select(_R.c.number).where(
+        _R.c.mesh_id == sa.bindparam("m"), _R.c.number >= sa.bindparam("first"), _R.c.number <= sa.bindparam("current")
+    )
 
 
 def now(sqlite: bool) -> Any:

@@ -4,17 +4,19 @@ The rows' layout (``property, id, part, v0 …``, one table per dtype) and
 what they mean are `hestore.values`'; `hestore.properties` reads one value
 (`value`) and whole properties (`texts`, `request`), `hestore.persistence`
 the values of the elements a unit of work loads (`of_elements`), and
-`hestore.traversal` the values that weigh a search's edges (`of_edges`).
+`hestore.traversal` the values that weigh a search's edges (`of_edges`), and `hestore.validation`
+which element and property every value belongs to (`owners`).
 """
 
 from __future__ import annotations
 
 import sqlalchemy as sa
 
+from hestore import schema
 from hestore.queries import query
 from hestore.statements import in_keys
 
-__all__ = ["value", "of_elements", "of_edges", "texts", "request"]
+__all__ = ["value", "of_elements", "of_edges", "texts", "request", "owners"]
 
 
 def _parts(table: sa.Table) -> list:
@@ -89,3 +91,12 @@ def request(table: sa.Table, prop: int, width: int, several: bool, floats: str |
     head = [table.c.id, table.c.part] if several else [table.c.id]
     flags = [] if nulls is None else [nulls]
     return (table, [*head, *comps, *flags], [table.c.property == prop])
+
+
+def owners() -> list:
+    """The `hestore.columns.read_columns` requests of ``(id, property)`` of every value, one per value table.
+
+    One row per value (its part 0): what `hestore.validation` checks
+    against the catalogue and the elements.
+    """
+    return [(t, [t.c.id, t.c.property], [t.c.part == 0]) for t in schema.VALUE_TABLES]
