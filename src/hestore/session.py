@@ -678,13 +678,6 @@ class Session:
         for mesh_id in dropped:
             del self._uows[mesh_id]
 
-    def flush(self) -> None:
-        """Write every pending edit now (a scope about to change rows itself, a restore)."""
-        self.check()
-        with self._guard("could not write"):
-            if self._uows:
-                self._flush()
-
     def analyze(self, tables) -> None:
         """Refresh the planner's statistics of ``tables`` (PostgreSQL, outside a transaction; else nothing)."""
         self.check()
@@ -820,12 +813,8 @@ class Session:
         Cheaper than `snapshot`, which also reads the revision: a search
         whose queries must see one committed state (`hestore.traversal`).
         """
-        self.check()
-        with self._guard("could not read"):
-            if self._uows:
-                self._flush()
-            with read_snapshot(self._conn):
-                yield
+        with self.querying(), read_snapshot(self._conn):
+            yield
 
     # -- what a view needs ---------------------------------------------------
 

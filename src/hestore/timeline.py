@@ -186,7 +186,6 @@ def restore(ref: MeshRef, target: int, message: str, action: str, acted_on: int)
     restorable(ref, action)
     session = ref.session
     with session.scope() as db:
-        session.flush()
         uow = session.lock(ref)  # the writer lock, and the revision this makes
         current = session.kept(ref, target)
         if not uow.history:
@@ -231,7 +230,6 @@ def prune(ref: MeshRef, keep: int) -> int:
     session = ref.session
     session.writable(ref)
     with session.scope() as db:
-        session.flush()
         session.lock(ref)
         current, kept_from, _ = session.history_row(ref)
         oldest = max(kept_from, current - keep + 1, 0)
