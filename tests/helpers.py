@@ -1,4 +1,4 @@
-"""Helpers shared by the kernel and navigation tests.
+"""Helpers shared by the test files (the fixtures are in ``conftest.py``).
 
 * `dump` — the full content of every hestore table (the property catalogue,
   value tables and history included), as sorted tuples, so that "a refused
@@ -6,19 +6,29 @@
 * `assert_refused` — the standard check of a refused operation: the typed
   error, and unchanged tables and revision, both outside a transaction block
   and inside one (which then goes on and commits another edit);
+* `assert_read_refused` and `put` — a file that `hestore.io.read` refuses,
+  and the file written first;
+* `run` — the command line, in the test's process;
+* `Rollback`, raised into a transaction block to roll it back, and
+  `STORED`, the hypothesis settings of a test that edits a stored mesh;
 * small mesh builders with known ids and positions.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import pathlib
 from typing import Callable, Sequence
 
 import pytest
 import sqlalchemy as sa
+from hypothesis import HealthCheck
 
 import hestore
-from hestore import schema
+from hestore import cli, schema
+from hestore import io as formats
+from hestore.errors import InvalidInputError
 
 TABLES = (
     schema.meshes, schema.vertices, schema.halfedges, schema.edges, schema.polygons, schema.properties,
@@ -26,9 +36,20 @@ TABLES = (
 )
 
 
+@functools.cache
+def _select(table: sa.Table) -> sa.Select:
+    # Times as text: what both backends give the same way.
+    return sa.select(*(sa.cast(c, sa.String) if isinstance(c.type, sa.DateTime) else c for c in table.c))
+
+
 def _rows(conn, table: sa.Table) -> list[tuple]:
-    cols = list(table.c)
-    return sorted((tuple(r) for r in conn.execute(sa.select(*cols))), key=_sortable)
+    return sorted((tuple(r) for r in conn.execute(_select(table))), key=_sortable)
+
+
+@functools.lru_cache(maxsize=16)
+def _engine(url: str) -> sa.Engine:
+    """An engine that connects afresh each time (no pool), kept for its cache of compiled statements."""
+    return sa.create_engine(url, poolclass=sa.pool.NullPool)
 
 
 def _sortable(row: tuple) -> tuple:
@@ -36,8 +57,8 @@ def _sortable(row: tuple) -> tuple:
     return tuple((v is None, 0 if v is None else v) for v in row)
 
 
-def dump(source) -> dict[str, list[tuple]]:
-    """Every row of every hestore table, sorted.
+def dump(source, tables: Sequence[sa.Table] = TABLES) -> dict[str, list[tuple]]:
+    """Every row of every hestore table (or of ``tables``), sorted.
 
     ``source`` is a `hestore.Store` (read through its own connection, so inside
     a transaction block the block's own edits are included) or a database URL
@@ -45,13 +66,9 @@ def dump(source) -> dict[str, list[tuple]]:
     """
     if isinstance(source, hestore.Store):
         with source.session.reading() as conn:
-            return {t.name: _rows(conn, t) for t in TABLES}
-    engine = sa.create_engine(source, poolclass=sa.pool.NullPool)
-    try:
-        with engine.connect() as conn:
-            return {t.name: _rows(conn, t) for t in TABLES}
-    finally:
-        engine.dispose()
+            return {t.name: _rows(conn, t) for t in tables}
+    with _engine(source).connect() as conn:
+        return {t.name: _rows(conn, t) for t in tables}
 
 
 def committed_url(store: hestore.Store) -> str:
@@ -107,6 +124,37 @@ def assert_refused(
     assert mesh.check() == []
     mesh.remove_vertex(extra)
     return info
+
+
+def assert_read_refused(path: pathlib.Path, where, fragment: str) -> None:
+    """Reading ``path`` raises InvalidInputError naming the file and ``where`` (a line or "byte N")."""
+    with pytest.raises(InvalidInputError) as info:
+        formats.read(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}:{where}: "), message
+    assert fragment in message, message
+
+
+def put(tmp_path: pathlib.Path, name: str, content: str | bytes) -> pathlib.Path:
+    """The file ``name`` in ``tmp_path``, holding ``content`` (text is written as UTF-8)."""
+    path = tmp_path / name
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    return path
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    """``hestore ARGV...`` in this process: the exit status, and what it wrote to stdout and to stderr."""
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+class Rollback(Exception):
+    """Raised into a block to roll it back."""
+
+
+#: Hypothesis settings of a test that edits a stored mesh: examples take their time, and share the test's store.
+STORED = dict(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 
 # -- builders -----------------------------------------------------------------

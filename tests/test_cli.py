@@ -27,18 +27,18 @@ import hestore
 from hestore import cli, migrate, progress, traversal
 from hestore.cli import commands, text
 
+from helpers import run
+
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+#: Seconds after which a child process is taken for hung: a guard against hangs, far beyond any honest
+#: run however busy the machine, never a measure of speed.
+HUNG = 600
 
 
 @pytest.fixture
 def url(tmp_path) -> str:
     return f"sqlite:///{tmp_path / 'cli.db'}"
-
-
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = cli.main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line_error(code: int, out: str, err: str) -> None:
@@ -231,7 +231,7 @@ def test_usage_and_version(capsys):
 
 def _run_process(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "HESTORE_URL"}
-    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
+    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=HUNG)
 
 
 def test_python_dash_m_hestore(tmp_path):
@@ -316,7 +316,7 @@ def assert_plain(err: str) -> None:
     assert "\r" not in err and "\x1b" not in err, repr(err)
 
 
-def meshes(url: str) -> list[str]:
+def mesh_names(url: str) -> list[str]:
     with hestore.open(url) as store:
         return store.meshes()
 
@@ -352,7 +352,7 @@ def test_import_under_a_name(capsys, url, tmp_path):
     code, out, err = run(capsys, "--db", url, "import", str(path), "--name", "part")
     assert code == 0, err
     assert out.startswith("part: 5 vertices")
-    assert meshes(url) == ["part"]
+    assert mesh_names(url) == ["part"]
 
 
 def test_import_stops_at_a_bad_polygon_and_stores_nothing(capsys, db_url, tmp_path):
@@ -363,17 +363,17 @@ def test_import_stops_at_a_bad_polygon_and_stores_nothing(capsys, db_url, tmp_pa
     assert err.startswith(f"hestore: error: {path}:9: polygon 2: ")
     assert "0→1" in err and "nothing was stored" in err
     assert "--on-error skip" in err
-    assert meshes(db_url) == []
+    assert mesh_names(db_url) == []
 
     code, out, err = run(capsys, "--db", db_url, "import", str(path), "--on-error", "raise")
     assert_one_line_error(code, out, err)
-    assert meshes(db_url) == []
+    assert mesh_names(db_url) == []
 
     path = off_file(tmp_path, [[0, 1, 2], [0, 2, 7]], "range.off")
     code, out, err = run(capsys, "--db", db_url, "import", str(path))
     assert_one_line_error(code, out, err)
     assert err.startswith(f"hestore: error: {path}:8: polygon 1: vertex index 7 is out of range")
-    assert meshes(db_url) == []
+    assert mesh_names(db_url) == []
 
     # Binary PLY has no lines: the error names the file and the polygon.
     path = tmp_path / "range.ply"
@@ -382,7 +382,7 @@ def test_import_stops_at_a_bad_polygon_and_stores_nothing(capsys, db_url, tmp_pa
     assert_one_line_error(code, out, err)
     assert err.startswith(f"hestore: error: {path}: polygon 1: vertex index 9 is out of range")
     assert "--on-error skip" in err
-    assert meshes(db_url) == []
+    assert mesh_names(db_url) == []
 
 
 def test_import_can_skip_bad_polygons(capsys, db_url, tmp_path):
@@ -431,7 +431,7 @@ def test_import_of_a_malformed_file(capsys, url, tmp_path, text, where, what):
     assert_one_line_error(code, out, err)
     assert err.startswith(f"hestore: error: {path}:{where}: "), err
     assert what in err
-    assert meshes(url) == []
+    assert mesh_names(url) == []
 
 
 def test_import_under_an_existing_name(capsys, db_url, tmp_path):
@@ -1026,8 +1026,8 @@ def test_check_and_stats_report_their_stages(store):
 def test_long_commands_show_progress_when_slow(db_url, capsys, monkeypatch, tmp_path):
     assert run(capsys, "--db", db_url, "demo")[0] == 0
     for argv in (["check", "demo"], ["info", "demo"], ["graph", "demo", "components"]):
-        assert run(capsys, "--db", db_url, *argv)[2] == ""  # quick: nothing on stderr
-    monkeypatch.setattr(commands, "QUIET_SECONDS", 0.0)  # as if the mesh were large
+        assert run(capsys, "--db", db_url, *argv)[2] == ""  # never slow enough (conftest): nothing on stderr
+    monkeypatch.setattr(commands, "QUIET_SECONDS", 0.0)  # always slow enough, as if the mesh were large
     code, out, err = run(capsys, "--db", db_url, "check", "demo")
     assert (code, out) == (0, "demo: valid\n") and err.startswith("read in ") and ", check in " in err
     code, out, err = run(capsys, "--db", db_url, "info", "demo")
@@ -1079,6 +1079,7 @@ def _import_is_writing(db_url: str, backend: str, application: str) -> bool:
         engine.dispose()
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url, backend, tmp_path):
     import signal
     import time
@@ -1099,13 +1100,13 @@ def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + HUNG
         while not _import_is_writing(db_url, backend, application):
             assert proc.poll() is None, f"the import ended before it could be interrupted: {proc.communicate()}"
             assert time.monotonic() < deadline, "the import never started writing"
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
+        out, err = proc.communicate(timeout=HUNG)
     finally:
         if proc.poll() is None:
             proc.kill()

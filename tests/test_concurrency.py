@@ -523,6 +523,7 @@ def _viewer(url: str, worker: int, stop, results) -> None:
         results.put(("error", worker, traceback.format_exc()))
 
 
+@pytest.mark.slow
 def test_undo_and_redo_among_concurrent_writers_lose_no_edit(db_url):
     """Four processes make random operators, undos and redos on one mesh while two read views of it.
 

@@ -43,12 +43,10 @@ from hestore import (
 )
 from hestore.handles import Handle
 from hestore.schema import VALUE_TABLES
-from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, TETRAHEDRON, assert_refused, build_faces, dump, grid
-from meshes import require_shared_meshes
-
-
-class Rollback(Exception):
-    """Raised into a block to roll it back."""
+from helpers import (
+    OCTAHEDRON, OCTAHEDRON_POSITIONS, TETRAHEDRON, Rollback, assert_refused, build_faces, dump, grid,
+)
+from meshes import corpus_files
 
 
 # --------------------------------------------------------------------------
@@ -1055,8 +1053,12 @@ def _questions(mesh, vs, quad, corner_pair):
     ]
 
 
+#: The asker's busy_timeout below: a predicate that waited for the writer's lock would wait this long.
+ASKER_WAITS = 60.0
+
+
 def test_predicates_never_wait_for_a_writer(db_url, backend):
-    with hestore.open(db_url, busy_timeout=3) as asker, hestore.open(db_url, busy_timeout=3) as writer:
+    with hestore.open(db_url, busy_timeout=ASKER_WAITS) as asker, hestore.open(db_url, busy_timeout=3) as writer:
         mesh = asker.create_mesh("m")
         vs, (p, q) = faces(mesh, 4, [(0, 1, 2), (0, 2, 3)])
         (quad,) = faces(mesh, 4, [(0, 1, 2, 3)])[1]
@@ -1081,7 +1083,10 @@ def test_predicates_never_wait_for_a_writer(db_url, backend):
             assert dump(db_url) == before
             theirs.poke_polygon(survivor)  # the writer goes on
             assert theirs.check() == []
-        assert elapsed < 2.0, f"the predicates took {elapsed:.2f} s while another store held the lock"
+        # A wait for the lock would have lasted the whole busy_timeout (the writer holds it until the
+        # predicates are done), then raised StoreBusyError or, with a fallback, answered late: the
+        # honest answers take a small part of it however busy the machine.
+        assert elapsed < ASKER_WAITS, f"the predicates took {elapsed:.2f} s while another store held the lock"
         assert answers == [want for _, want in questions]  # the committed state, not the writer's
         assert mesh.revision == rev + 1
         # now the writer's state: the diagonal is gone, the quad is cut, p is poked
@@ -1836,9 +1841,10 @@ def _note_new(ids: dict, result) -> None:
             ids[kind]["next"] = max(ids[kind]["next"], top)
 
 
-def test_random_operators_on_a_real_closed_mesh(store):
-    path = require_shared_meshes() / "sphere840.ply"
-    mesh = store.import_file(path, "sphere").mesh
+@pytest.mark.parametrize("corpus_file", corpus_files(only=["sphere840.ply"]))
+def test_random_operators_on_a_real_closed_mesh(corpus, corpus_file):
+    mesh = corpus.copy(corpus_file)  # the corpus's import of the scan, the test's own to edit
+    store = mesh.store
     declare(mesh)
     start = vef(mesh)
     assert start == (422, 1260, 840) and mesh.stats().is_closed
@@ -1854,7 +1860,7 @@ def test_random_operators_on_a_real_closed_mesh(store):
     expected = list(start)
     done: dict[str, int] = {}
     refused: dict[str, int] = {}
-    t0 = time.monotonic()
+    t0 = time.process_time()  # this process's: a busy machine does not add to it
     with store.transaction():
         for _ in range(400):
             op, args, kwargs = _random_request(rng, mesh, ids)
@@ -1887,7 +1893,7 @@ def test_random_operators_on_a_real_closed_mesh(store):
             done[op] = done.get(op, 0) + 1
             assert list(vef(mesh)) == expected, f"{op}{args}: {vef(mesh)} != {expected}"
         assert mesh.check() == []
-    elapsed = time.monotonic() - t0
+    elapsed = time.process_time() - t0
     assert mesh.revision == rev + 1
     assert mesh.check() == []
     v, e, f = vef(mesh)
@@ -1897,4 +1903,4 @@ def test_random_operators_on_a_real_closed_mesh(store):
     # the run did exercise the operators, and their refusals
     assert sum(done.values()) >= 100 and len(done) >= 6, done
     assert sum(refused.values()) >= 30, refused
-    assert elapsed < 120, f"400 operators took {elapsed:.1f} s"
+    assert elapsed < 120, f"400 operators took {elapsed:.1f} s of processor time"

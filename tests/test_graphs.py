@@ -714,6 +714,7 @@ class GraphMachine(RuleBasedStateMachine):
 SHRINK = os.environ.get("HESTORE_SHRINK", "") not in ("", "0")
 
 
+@pytest.mark.slow
 def test_graph_state_machine(db_url, backend):
     machine = type("Machine", (GraphMachine,), {"url": db_url})
     run_state_machine_as_test(

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sqlalchemy as sa
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hestore
@@ -55,16 +55,11 @@ from hestore.errors import (
 )
 
 from conftest import BACKENDS, _pg_schema_url
-from helpers import triangle_grid
+from helpers import STORED, Rollback, dump, triangle_grid
 from test_concurrency import CTX, WAIT, _gather, _run, _stop
 
 KINDS = ("vertex", "halfedge", "edge", "polygon")
 EMPTY_COUNTS = {k: {"created": 0, "removed": 0, "changed": 0} for k in KINDS}
-STORED = dict(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-
-
-class Rollback(Exception):
-    """Raised into a block to roll it back."""
 
 
 # --------------------------------------------------------------------------
@@ -322,31 +317,6 @@ ALL_TABLES = (
 )
 
 
-def _none_first(row: tuple) -> list:
-    return [(v is not None, 0 if v is None else v) for v in row]
-
-
-def dump_all(source) -> dict[str, list[tuple]]:
-    """Every row of every table (history and revisions included), sorted; a `hestore.Store` or a URL."""
-
-    def rows(conn):
-        out = {}
-        for t in ALL_TABLES:
-            cols = [c if c.name != "committed_at" else sa.cast(c, sa.String) for c in t.c]
-            out[t.name] = sorted((tuple(r) for r in conn.execute(sa.select(*cols))), key=_none_first)
-        return out
-
-    if isinstance(source, hestore.Store):
-        with source.session.reading() as conn:
-            return rows(conn)
-    engine = sa.create_engine(source, poolclass=sa.pool.NullPool)
-    try:
-        with engine.connect() as conn:
-            return rows(conn)
-    finally:
-        engine.dispose()
-
-
 @pytest.fixture(scope="module", params=BACKENDS)
 def scripted(request, tmp_path_factory):
     """The script, run once per backend on a database of its own, for the tests that only read it.
@@ -389,6 +359,7 @@ def script(store) -> Script:
 # 1. at(r) is the snapshot taken at r
 
 
+@pytest.mark.slow
 def test_every_revision_reads_back_as_it_was(scripted, tmp_path):
     mesh = scripted.mesh
     assert mesh.revision == scripted.last == 29
@@ -558,6 +529,7 @@ def _message(mesh: hestore.Mesh) -> str | None:
     return mesh.history(limit=1)[0].message
 
 
+@pytest.mark.slow
 def test_undo_walks_the_script_back_to_empty_and_redo_walks_it_forward(script):
     mesh, snaps, last = script.mesh, script.snaps, script.last
     for k in range(1, last + 1):
@@ -688,7 +660,7 @@ def test_undo_redo_and_revert_inside_a_block(store):
     b = mesh.add_vertex((1.0, 0.0, 0.0))
     mesh.set_position(b, (2.0, 0.0, 0.0))
     mesh.undo()  # revision 4: something to undo and something to redo
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     with pytest.raises(Rollback):
         with store.transaction():
             mesh.add_edge(a, b)
@@ -697,14 +669,14 @@ def test_undo_redo_and_revert_inside_a_block(store):
                     op()
             assert mesh.counts().edges == 1 and b.position == (1.0, 0.0, 0.0)  # the block goes on
             raise Rollback
-    assert dump_all(store) == before
+    assert dump(store, ALL_TABLES) == before
     # first in a block: allowed, its own revision; a rollback takes it back
     with pytest.raises(Rollback):
         with store.transaction():
             assert mesh.redo() == 5
             assert b.position == (2.0, 0.0, 0.0)
             raise Rollback
-    assert dump_all(store) == before and mesh.revision == 4 and b.position == (1.0, 0.0, 0.0)
+    assert dump(store, ALL_TABLES) == before and mesh.revision == 4 and b.position == (1.0, 0.0, 0.0)
     with store.transaction():
         assert mesh.redo() == 5
     assert b.position == (2.0, 0.0, 0.0) and _message(mesh) == "redo of revision 3"
@@ -715,14 +687,14 @@ def test_redo_inside_a_block_that_changed_the_mesh_is_invalid_input(store):
     a = mesh.add_vertex((0.0, 0.0, 0.0))
     mesh.set_position(a, (2.0, 0.0, 0.0))
     mesh.undo()  # revision 3: revision 2 can be redone
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     with pytest.raises(Rollback):
         with store.transaction():
             mesh.add_vertex()
             with pytest.raises(InvalidInputError, match="block"):
                 mesh.redo()
             raise Rollback
-    assert dump_all(store) == before
+    assert dump(store, ALL_TABLES) == before
 
 
 def test_undo_and_redo_of_a_mesh_seen_by_another_store(db_url):
@@ -823,11 +795,11 @@ def test_the_source_goes_on_independently_of_its_branch(store):
 def test_prune_keeps_the_newest_revisions(script):
     mesh, snaps, last = script.mesh, script.snaps, script.last
     store = script.store
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     oldest = mesh.prune_history(keep=10)
     assert oldest == last - 9
     assert mesh.revision == last  # pruning is not a revision
-    assert dump_all(store)["meshes"] != before["meshes"]  # (only kept_from moved)
+    assert dump(store, ALL_TABLES)["meshes"] != before["meshes"]  # (only kept_from moved)
     kept = mesh.history()
     assert [r.number for r in kept] == list(range(last, oldest - 1, -1))
     for r in kept:  # the oldest kept says what it changed still
@@ -835,7 +807,7 @@ def test_prune_keeps_the_newest_revisions(script):
     for r in range(oldest, last + 1, 2):
         assert snapshot(mesh.at(r)) == snaps[r]
     assert as_dict(mesh.diff(oldest, last)) == expected_diff(snaps[oldest], snaps[last])
-    rows = dump_all(store)
+    rows = dump(store, ALL_TABLES)
     for r in (0, 1, oldest - 1):
         with pytest.raises(RevisionNotFoundError, match="no longer kept"):
             mesh.at(r)
@@ -847,7 +819,7 @@ def test_prune_keeps_the_newest_revisions(script):
             mesh.revert(r)
         with pytest.raises(RevisionNotFoundError):
             store.copy_mesh("m", "old", revision=r)
-    assert dump_all(store) == rows and mesh.revision == last
+    assert dump(store, ALL_TABLES) == rows and mesh.revision == last
     # undo walks back to the oldest kept, not past it
     for k in range(1, 10):
         mesh.undo()
@@ -1071,6 +1043,7 @@ def _pruned_viewer(url: str, seed: int, stop, results) -> None:
         results.put(("error", None, traceback.format_exc()))
 
 
+@pytest.mark.slow
 def test_views_read_while_another_process_prunes_are_right_or_refuse(db_url):
     """Two processes read views of random revisions while a third edits and prunes: never a broken mesh."""
     with hestore.open(db_url) as store:
@@ -1119,7 +1092,7 @@ def _without_history(store: hestore.Store, how: str) -> None:
     assert mesh.revision == expected  # revisions still count
     assert mesh.history() == [] and mesh.history(limit=2) == []
     assert snapshot(mesh.at(expected)) == snapshot(mesh) and mesh.at(expected).check() == []
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     for r in (0, 1, expected - 1):
         with pytest.raises(RevisionNotFoundError, match="history"):
             mesh.at(r)
@@ -1135,7 +1108,7 @@ def _without_history(store: hestore.Store, how: str) -> None:
         mesh.redo()
     with pytest.raises(RevisionNotFoundError):
         mesh.revert(expected)
-    assert dump_all(store) == before and mesh.revision == expected
+    assert dump(store, ALL_TABLES) == before and mesh.revision == expected
     # no row version of its past is kept
     assert all(not [row for row in before[h.name] if row[0] == mesh.id] for h in schema.HISTORY.values())
     # a copy at the current revision works, and keeps no history either
@@ -1271,6 +1244,7 @@ def test_postgresql_keeps_one_plan_for_each_write(store):
     assert not replanned, replanned
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", [pytest.param("postgresql", marks=pytest.mark.postgresql)])
 def test_postgresql_writes_sized_for_the_planner_write_the_same(store, monkeypatch):
     """From ``_SIZED_ROWS`` rows a write lets the planner see its arrays: the same rows and history result."""
@@ -1378,7 +1352,7 @@ def test_bad_revision_numbers_are_refused_and_change_nothing(store):
     mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
     mesh.add_vertex((2.0, 2.0, 2.0))
     url = store.url.render_as_string(hide_password=False)
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     missing = (-1, -(2**63), 3, 2**63 - 1, 2**63, 2**70)
     wrong_type = (True, False, "1", 1.0, 1.5, None, [1], np.float64(1.0))
     calls = {
@@ -1398,7 +1372,7 @@ def test_bad_revision_numbers_are_refused_and_change_nothing(store):
                 continue  # revision=None: the current one
             with pytest.raises(InvalidInputError):
                 call(r)
-    assert dump_all(store) == before and dump_all(url) == before and mesh.revision == 2
+    assert dump(store, ALL_TABLES) == before and dump(url, ALL_TABLES) == before and mesh.revision == 2
     # numpy integers are integers
     assert mesh.at(np.int64(1)).counts().vertices == 3 and mesh.diff(np.int32(1), np.int64(2)).created["vertex"] == [3]
     # inside a block: refused, and the block goes on
@@ -1448,7 +1422,7 @@ def test_views_refuse_every_edit(store):
         "prune_history": lambda: view.prune_history(keep=1),
     }
     url = store.url.render_as_string(hide_password=False)
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     refused = {}
     for name, edit in edits.items():
         try:
@@ -1460,7 +1434,7 @@ def test_views_refuse_every_edit(store):
     assert {n: m for n, m in refused.items() if not isinstance(m, str)} == {}
     assert set(refused) == set(edits)
     assert all("read-only" in m for m in refused.values())
-    assert dump_all(store) == before and dump_all(url) == before and mesh.revision == 3
+    assert dump(store, ALL_TABLES) == before and dump(url, ALL_TABLES) == before and mesh.revision == 3
     assert snapshot(mesh.at(2)) == snapshot(view)
     # the predicates answer: no operation can be done on a view, though each can on the mesh
     predicates = {
@@ -1476,13 +1450,13 @@ def test_views_refuse_every_edit(store):
     assert {n: f(mesh) for n, f in predicates.items()} == dict.fromkeys(predicates, True)
     assert {n: f(view) for n, f in predicates.items()} == dict.fromkeys(predicates, False)
     assert view.can_add_polygon([v0, v2, v3]) is False and mesh.can_add_polygon([mesh.vertex(i) for i in (0, 2, 3)])
-    assert dump_all(store) == before
+    assert dump(store, ALL_TABLES) == before
     # inside a block: refused, nothing changed, and the block goes on
     with store.transaction(message="after refusals"):
         for name in ("add_vertex", "setitem", "flip_edge", "undo", "revert"):
             with pytest.raises(ReadOnlyError):
                 edits[name]()
-        assert dump_all(store) == before
+        assert dump(store, ALL_TABLES) == before
         w = mesh.add_vertex((0.5, 0.25, 0.125))
     assert mesh.revision == 4 and _message(mesh) == "after refusals"
     assert mesh.diff(3, 4).created["vertex"] == [w.id] and not any(mesh.diff(3, 4).changed.values())
@@ -1493,7 +1467,7 @@ def test_handles_of_a_mesh_and_of_its_views_do_not_mix(store):
     mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]]).mesh
     mesh.add_vertex((5.0, 5.0, 5.0))
     view, other = mesh.at(1), mesh.at(2)
-    before = dump_all(store)
+    before = dump(store, ALL_TABLES)
     mine = [mesh.vertex(0), mesh.vertex(1), mesh.halfedge(0), mesh.edge(0), mesh.polygon(0)]
     theirs = [view.vertex(0), view.vertex(1), view.halfedge(0), view.edge(0), view.polygon(0)]
     # a view's handles on the mesh
@@ -1522,7 +1496,7 @@ def test_handles_of_a_mesh_and_of_its_views_do_not_mix(store):
     ):
         with pytest.raises((ElementNotFoundError, ReadOnlyError)):
             call()
-    assert dump_all(store) == before and mesh.revision == 2
+    assert dump(store, ALL_TABLES) == before and mesh.revision == 2
     # reads through a handle answer for its own mesh or view
     assert theirs[0].position == (0.0, 0.0, 0.0) and len(mesh.vertex(0).neighbors()) == 2
     with pytest.raises(ElementNotFoundError):
@@ -1649,14 +1623,14 @@ def test_a_process_killed_inside_a_block_leaves_no_revision(db_url):
         mesh.vertex(2)["t"] = 1.0
         snaps = {r: snapshot(mesh.at(r)) for r in range(4)}
         history = [(r.number, r.message, r.changes) for r in mesh.history()]
-    committed = dump_all(db_url)
+    committed = dump(db_url, ALL_TABLES)
     p = _run(_die_in_a_block, db_url)
     p.join(timeout=WAIT)
     if p.is_alive():
         _stop([p])
         pytest.fail("the child process did not finish")
     assert p.exitcode == 3
-    assert dump_all(db_url) == committed
+    assert dump(db_url, ALL_TABLES) == committed
     with hestore.open(db_url) as store:
         mesh = store.mesh("m")
         assert mesh.revision == 3 and mesh.check() == []
@@ -1723,6 +1697,7 @@ def _random_edit(store: hestore.Store, mesh: hestore.Mesh, edit: str, seed: int)
                 mesh.set_position(v, (2.0, 2.0, 2.0))
 
 
+@pytest.mark.slow
 @settings(max_examples=3, **STORED)
 @given(edits=st.lists(st.tuples(st.sampled_from(EDITS), st.integers(0, 1000)), min_size=2, max_size=6))
 def test_random_edits_read_back_and_undo_back(store, edits):

@@ -10,6 +10,7 @@ several fans meet, which the issue leaves free.
 
 from __future__ import annotations
 
+import functools
 import itertools
 
 import numpy as np
@@ -71,10 +72,19 @@ def signature(mesh: hestore.Mesh) -> dict:
     }
 
 
+@functools.cache
+def _reference_store() -> hestore.Store:
+    """The in-memory store that `sequential` builds in (one per process: opening one migrates its schema)."""
+    return hestore.open("sqlite://")
+
+
 def sequential(positions, polygons) -> tuple[hestore.Mesh, list[int]]:
-    """The reference: `add_polygon` one by one on an in-memory store, skipping refusals."""
-    store = hestore.open("sqlite://")
-    mesh = store.create_mesh("reference")
+    """The reference: `add_polygon` one by one in a new mesh of an in-memory store, skipping refusals.
+
+    The caller deletes the mesh when done (``reference.store.delete_mesh(reference.name)``).
+    """
+    store = _reference_store()
+    mesh = store.create_mesh(f"reference{next(_names)}")
     with store.transaction():
         vs = [mesh.add_vertex(tuple(p)) for p in positions]
     skipped = []
@@ -109,7 +119,7 @@ def assert_same_as_sequential(store, polygons, n_vertices):
         assert info.value.skipped.index == skipped[0]
         assert f"polygon {skipped[0]}" in str(info.value)
         assert dump(store) == before, "a refused import stored something"
-    reference.store.close()
+    reference.store.delete_mesh(reference.name)
     return report
 
 
@@ -145,6 +155,7 @@ def soups(draw):
     return n, polys
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)], indirect=True)
 def test_import_equals_add_polygon_one_by_one(store, backend):
     @settings(

@@ -18,13 +18,7 @@ from hestore import cli
 from hestore.errors import InvalidInputError, MissingDependencyError
 
 from helpers import dump
-from meshes import require_shared_meshes
 
-
-
-@pytest.fixture
-def meshes():
-    return require_shared_meshes()
 
 
 def rows(arrays) -> list[list[int]]:

@@ -44,7 +44,7 @@ SOURCES = [
 DERIVED = "cube_poly.off as binary big-endian PLY"
 
 CASES = 600  # mutants per source file
-SECONDS = 5.0  # per read: generous, only there to catch hangs
+SECONDS = 5.0  # processor time per read (which a busy machine does not add to): generous, catches runaway work
 # Per read: the soup and the parsing temporaries of a file of a few KB fit
 # in a few MB; a reader that trusts a header count allocates gigabytes.
 PEAK_BYTES = 64 << 20
@@ -184,7 +184,7 @@ def test_mutated_files_read_fine_or_raise_invalid_input(name, tmp_path):
         context = f"seed {seed!r} ({'; '.join(done)}), {len(data)} bytes"
         soup = None
         tracemalloc.start()
-        started = time.perf_counter()
+        started = time.process_time()
         try:
             soup = mesh_io.read(path)
             outcomes["read"] += 1
@@ -195,7 +195,7 @@ def test_mutated_files_read_fine_or_raise_invalid_input(name, tmp_path):
         except Exception as e:  # noqa: BLE001 - anything else is the bug this test looks for
             pytest.fail(f"{context}: {type(e).__name__}: {e}")
         finally:
-            seconds = time.perf_counter() - started
+            seconds = time.process_time() - started
             peak = tracemalloc.get_traced_memory()[1]
             tracemalloc.stop()
         assert seconds < SECONDS, f"{context}: the read took {seconds:.1f} s"
@@ -233,6 +233,7 @@ def _put(path: pathlib.Path, data: bytes) -> pathlib.Path:
 STORE_CASES = 40  # mutants per source file imported into a store, on each backend
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SOURCES)
 def test_mutated_files_import_whole_or_not_at_all(name, store, tmp_path):
     """Through a store: every failure is typed, nothing is stored, and what is stored is valid."""
@@ -247,7 +248,7 @@ def test_mutated_files_import_whole_or_not_at_all(name, store, tmp_path):
         path = _put(tmp_path / f"m{case}{suffix}", mutant)
         before = dump(store)
         context = f"seed {seed!r}, mutations {what}"
-        t0 = time.monotonic()
+        t0 = time.process_time()
         try:
             report = store.import_file(path, f"m{case}", on_error="skip")
         except hestore.HestoreError as exc:
@@ -256,4 +257,4 @@ def test_mutated_files_import_whole_or_not_at_all(name, store, tmp_path):
         else:
             assert report.mesh.check() == [], context
             assert report.mesh.counts().polygons == report.polygons, context
-        assert time.monotonic() - t0 < SECONDS, f"{context}: took too long"
+        assert time.process_time() - t0 < SECONDS, f"{context}: took too long"

@@ -9,11 +9,8 @@ by line only, which must all give the same arrays and errors.
 
 from __future__ import annotations
 
-import pathlib
-
 import numpy as np
 import pytest
-from meshes import require_shared_meshes
 
 from hestore import io as mesh_io
 from hestore.errors import InvalidInputError
@@ -23,32 +20,10 @@ from hestore.io.common import PolygonSoup
 from hestore.io.obj import read_obj, write_obj
 from hestore.io.ply import read_ply, write_ply
 
+from helpers import assert_read_refused, put
+from meshes import require_shared_meshes
+
 NAN = float("nan")
-
-
-@pytest.fixture(params=["whole", "tiny-chunks", "per-line"])
-def reader(request, monkeypatch):
-    """How text files are read: normally, in 37-byte chunks, or line by line only."""
-    if request.param == "tiny-chunks":
-        monkeypatch.setattr(common, "CHUNK_BYTES", 37)
-    elif request.param == "per-line":
-        monkeypatch.setattr(common, "parse", lambda text, total, dtype: None)
-    return request.param
-
-
-def put(tmp_path: pathlib.Path, name: str, content: str | bytes) -> pathlib.Path:
-    path = tmp_path / name
-    path.write_bytes(content.encode() if isinstance(content, str) else content)
-    return path
-
-
-def refused(path: pathlib.Path, where, fragment: str) -> None:
-    """Reading ``path`` raises InvalidInputError naming the file and ``where`` (a line or "byte N")."""
-    with pytest.raises(InvalidInputError) as info:
-        mesh_io.read(path)
-    message = str(info.value)
-    assert message.startswith(f"{path}:{where}: "), message
-    assert fragment in message, message
 
 
 def same_bits(a: np.ndarray, b: np.ndarray) -> None:
@@ -209,7 +184,7 @@ def test_malformed_ascii_ply_property_values_name_the_line(tmp_path, reader, ver
         "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
         "property list uchar int vertex_indices\nproperty float weight\nend_header\n"
     )
-    refused(put(tmp_path, "bad.ply", header + vertex + face), line, fragment)
+    assert_read_refused(put(tmp_path, "bad.ply", header + vertex + face), line, fragment)
 
 
 def test_ply_property_declared_twice_is_refused(tmp_path):
@@ -217,7 +192,7 @@ def test_ply_property_declared_twice_is_refused(tmp_path):
         "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty uchar red\n"
         "property uchar red\nend_header\n0 0 1 2\n"
     )
-    refused(put(tmp_path, "twice.ply", header), 3, "the vertex element has two properties 'red'")
+    assert_read_refused(put(tmp_path, "twice.ply", header), 3, "the vertex element has two properties 'red'")
 
 
 BINARY_TYPES = ["char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "uint16", "float32"]
@@ -519,14 +494,15 @@ def test_obj_corner_references_every_syntax(tmp_path, reader):
 )
 def test_malformed_obj_corner_references_name_file_and_line(tmp_path, reader, face, line, fragment):
     text = "# padding\n" * 3 + "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 1\nvn 0 0 1\n" + face + "f 1 2 3\n"
-    refused(put(tmp_path, "bad.obj", text), line, fragment)
+    assert_read_refused(put(tmp_path, "bad.obj", text), line, fragment)
 
 
 def test_obj_forward_texture_references_resolve_against_the_whole_file(tmp_path, reader):
     soup = mesh_io.read(put(tmp_path, "f.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/2 2/1 3\nvt 0 0\nvt 1 1\n"))
     same_bits(soup.corner_properties["uv"], np.array([[1.0, 1.0], [0.0, 0.0], [NAN, NAN]]))
     # Out of range however far the file goes: the line of the face is named.
-    refused(put(tmp_path, "g.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/3 2/1 3\nvt 0 0\nvt 1 1\n"), 4, "index 3")
+    obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/3 2/1 3\nvt 0 0\nvt 1 1\n"
+    assert_read_refused(put(tmp_path, "g.obj", obj), 4, "index 3")
 
 
 # -- OBJ writing ------------------------------------------------------------------

@@ -997,6 +997,7 @@ def _random_loop(rng, mesh, vs):
     return [rng.choice(vs) for _ in range(rng.choice([1, 2, 3, 3, 3, 4, 4, 5]))]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 def test_random_edit_sequences_keep_every_invariant(mesh, seed):
     """Every edit either succeeds and leaves a valid mesh, or raises a TopologyError

@@ -16,15 +16,13 @@ import re
 
 import networkx as nx
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hestore
-from hestore import cli, graphs
-from helpers import dump, grid
+from hestore import graphs
+from helpers import STORED, dump, grid, run
 from meshes import require_shared_meshes
-
-STORED = dict(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 #: Small and medium shared meshes: components, boundaries, pinched vertices, mixed arities, handles.
 SHARED = ("blobby_3cc.off", "knot2.off", "hole_capsule.off", "teapot.obj", "platonic_shelf.obj", "sphere840.ply")
@@ -635,12 +633,6 @@ def test_property_weights_refuse_what_cannot_weigh(store):
 
 
 # -- the command line -----------------------------------------------------------------------
-
-
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = cli.main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def one_line_error(code: int, out: str, err: str) -> str:

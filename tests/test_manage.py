@@ -13,7 +13,7 @@ import pytest
 import sqlalchemy as sa
 
 import hestore
-from hestore import cli, schema
+from hestore import schema
 from hestore.errors import (
     InvalidInputError,
     MeshExistsError,
@@ -21,8 +21,7 @@ from hestore.errors import (
     RevisionNotFoundError,
 )
 
-from helpers import dump
-from meshes import require_shared_meshes
+from helpers import dump, run
 
 TRI = ([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [[0, 1, 2], [1, 3, 2]])
 
@@ -217,12 +216,6 @@ def test_import_replace_that_fails_keeps_the_old_mesh(store, tmp_path):
 # -- the command line -----------------------------------------------------------
 
 
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = cli.main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def test_cli_delete_rename_copy_and_import_replace(capsys, db_url, tmp_path):
     assert run(capsys, "--db", db_url, "demo")[0] == 0
     code, out, err = run(capsys, "--db", db_url, "copy", "demo", "twin")
@@ -272,11 +265,6 @@ def test_cli_refusals_are_one_line_and_change_nothing(capsys, db_url, argv, word
 
 # -- the dual -------------------------------------------------------------------
 
-
-
-@pytest.fixture
-def meshes():
-    return require_shared_meshes()
 
 
 def _octahedron(store, name="octa"):

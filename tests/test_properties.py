@@ -31,6 +31,8 @@ from hestore import schema
 from hestore.errors import ElementNotFoundError, HestoreError, InvalidInputError, PropertyNotFoundError
 from hestore.values import Property
 
+from helpers import Rollback
+
 KINDS = ("vertex", "halfedge", "edge", "polygon")
 WHAT = {"vertex": "vertex", "halfedge": r"half-?edge", "edge": "edge", "polygon": "polygon"}
 ALL_TABLES = (
@@ -40,10 +42,6 @@ ALL_TABLES = (
 VALUE_TABLES = (schema.property_reals, schema.property_integers, schema.property_texts)
 ITER = {"vertex": "vertices", "halfedge": "halfedges", "edge": "edges", "polygon": "polygons"}
 NUMPY_DTYPE = {"float64": np.float64, "int64": np.int64, "bool": np.bool_, "str": object}
-
-
-class Rollback(Exception):
-    """Raised into a block to roll it back."""
 
 
 # --------------------------------------------------------------------------

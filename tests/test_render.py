@@ -24,7 +24,8 @@ from matplotlib.colors import to_rgba  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.image import imread  # noqa: E402
 
-from meshes import require_shared_meshes  # noqa: E402
+from meshes import corpus_files  # noqa: E402
+
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SVG = "{http://www.w3.org/2000/svg}"
@@ -119,18 +120,14 @@ def test_render_replaces_a_file_whole(store, out):
     assert png_size(path) == (100, 80)
 
 
-@pytest.fixture(scope="module")
-def large_mesh(tmp_path_factory):
-    """The 1.07 M-face igea scan, imported once into a SQLite file."""
-    folder = require_shared_meshes()
-    store = hestore.open(f"sqlite:///{tmp_path_factory.mktemp('large') / 'large.db'}")
-    mesh = store.import_file(folder / "igea-subdiv1.ply", "igea").mesh
-    yield mesh
-    store.close()
+@pytest.mark.parametrize("backend", ["sqlite"], indirect=True)
+@pytest.mark.parametrize("corpus_file", corpus_files(only=["igea-subdiv1.ply"]))
+def test_large_mesh_png_and_svg(corpus, corpus_file, out, backend):
+    """One read of the 1.07 M-face igea scan (the read dominates), saved as PNG and as SVG.
 
-
-def test_large_mesh_png_and_svg(large_mesh, out):
-    """One read of the 1.07 M-face scan (the read dominates), saved as PNG and as SVG."""
+    The scan is the corpus's (``conftest.corpus``): imported once for every test that reads it.
+    """
+    large_mesh = corpus.mesh(corpus_file)
     assert large_mesh.counts().polygons > rendering.MAX_POLYGONS
     stages = []
     figure = Figure(figsize=(6, 4.5), dpi=100)

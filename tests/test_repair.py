@@ -9,11 +9,10 @@ consistent imports identically with and without it.
 
 from __future__ import annotations
 
-import pathlib
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hestore
@@ -21,14 +20,8 @@ from hestore import cli
 from hestore.build import orient
 from hestore.errors import InvalidInputError, NonOrientableError, TopologyError
 
-from helpers import dump
-from meshes import require_shared_meshes
+from helpers import STORED, dump
 
-
-
-@pytest.fixture
-def meshes() -> pathlib.Path:
-    return require_shared_meshes()
 
 
 def cycles_of(mesh) -> set[tuple[int, ...]]:
@@ -115,7 +108,7 @@ def _octahedron_faces():
     return [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, **STORED)
 @given(flips=st.lists(st.booleans(), min_size=8, max_size=8), shift=st.integers(0, 2))
 def test_random_flips_of_an_orientable_soup_are_undone(flips, shift):
     """orient() alone, on random reversals of a closed octahedron (set-based, no database needed)."""

@@ -31,28 +31,19 @@ import pathlib
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hestore import cli
 from hestore.arrays import polygon_halfedges, ragged
 from hestore.build import build, separate
 from hestore.errors import InvalidInputError, MeshExistsError
 from hestore.io import read
 from hestore.validation import check_arrays
 
-from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, dump
-from meshes import require_shared_meshes
+from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, STORED, dump, run
 from test_import import soups
 
 _names = itertools.count()
-
-STORED = dict(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-
-
-@pytest.fixture
-def meshes() -> pathlib.Path:
-    return require_shared_meshes()
 
 
 # -- helpers ------------------------------------------------------------------
@@ -530,12 +521,6 @@ def test_an_unknown_on_error_names_split(store, meshes, value):
 
 
 # -- the command line ---------------------------------------------------------
-
-
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = cli.main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_cli_split_and_orient_a_moebius_strip(capsys, db_url, meshes):

@@ -174,7 +174,7 @@ from hestore.errors import (
 )
 from hestore.schema import VALUE_TABLES
 
-from helpers import dump
+from helpers import Rollback, dump
 
 MAX_VERTICES = 12
 MAX_GROWN = MAX_VERTICES + 4  # split_edge and poke_polygon add vertices up to here
@@ -257,10 +257,6 @@ def in_step(call):
     """Mark a call that fails inside one of the store's steps (a savepoint in a block): see BUG-H3."""
     call.in_step = True
     return call
-
-
-class Rollback(Exception):
-    """Raised into a block to roll it back."""
 
 
 class Refusal(Exception):
@@ -2309,6 +2305,7 @@ def _run(url: str, max_examples: int, steps: int) -> None:
     )
 
 
+@pytest.mark.slow
 def test_state_machine(db_url, backend):
     if backend == "sqlite":
         _run(db_url, max_examples=40, steps=40)

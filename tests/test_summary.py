@@ -5,10 +5,11 @@ for every case, against `walked`, a second computation that walks the stored
 structure one handle at a time (the navigation API, not `hestore.summary`'s
 numpy) with networkx for the components.
 
-`test_shared_meshes` imports every file in the shared meshes folder and checks
-the figures against a computation from the polygons that were stored
-(`mesh.to_arrays()`), written here in plain Python with networkx for the
-components, and against facts known about the files.
+`test_shared_meshes` reads every file in the shared meshes folder, as the
+corpus imported it (``conftest.corpus``), and checks the figures against a
+computation from the polygons that were stored (`mesh.to_arrays()`), written
+here in plain Python with networkx for the components, and against facts
+known about the files.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from hestore.arrays import cycle_positions as _cycle_positions
 from hestore.arrays import component_roots
 
 from helpers import OCTAHEDRON, OCTAHEDRON_POSITIONS, TETRAHEDRON, build_faces, grid
-from meshes import require_shared_meshes
+from meshes import corpus_files
 
 
 # -- the second computation, through handles ------------------------------------------
@@ -520,57 +521,48 @@ def reference(arrays) -> dict:
     return out
 
 
-def _shared_files():
-    folder = require_shared_meshes()
-    return sorted(p for p in folder.iterdir() if p.suffix.lower() in (".off", ".obj", ".ply"))
+#: The backends and files of `test_shared_meshes`: every file on SQLite, the files up to `BIG` on PostgreSQL.
+SUMMARY_CASES = corpus_files(backend="sqlite") + corpus_files(max_bytes=BIG, backend="postgresql")
 
 
-def test_shared_meshes(store, backend):
-    """Every shared file, imported with ``on_error="skip"``, against `reference` and `KNOWN`.
+@pytest.mark.parametrize("backend, corpus_file", SUMMARY_CASES, indirect=["backend"])
+def test_shared_meshes(corpus, backend, corpus_file):
+    """The shared file, as the corpus imported it (``on_error="skip"`` where ``"raise"`` refuses), against
+    `reference` and `KNOWN`.
 
     The independent computation is plain Python over the polygons
     `Mesh.to_arrays` gives back, with networkx's ``connected_components`` for
     the components.
     """
-    files = _shared_files()
-    assert len(files) >= 29
-    expected = [p for p in files if backend == "sqlite" or p.stat().st_size <= BIG]
-    checked = 0
-    for path in files:
-        if backend != "sqlite" and path.stat().st_size > BIG:
-            continue
-        mesh = store.import_file(path, path.stem, on_error="skip").mesh
-        s = mesh.stats()
-        arrays = mesh.to_arrays()
-        ref = reference(arrays)
-        for field in (
-            "vertices", "isolated_vertices", "edges", "loops", "polygons", "boundary_edges", "components",
-            "euler_characteristic", "pinched_vertices", "is_closed", "genus",
-        ):
-            assert getattr(s, field) == ref[field], (path.name, field, getattr(s, field), ref[field])
-        assert s.parallel_edges == s.wire_edges == 0, path.name
-        assert s.halfedges == 2 * s.edges and sum(s.polygon_sizes.values()) == s.polygons
-        assert s.is_manifold == (not ref["pinched_vertices"]), path.name
-        loops = mesh.boundary_loops()
-        assert sum(len(x) for x in loops) == s.boundary_edges, path.name
-        if "boundary_loops" in ref:
-            assert s.boundary_loops == ref["boundary_loops"] == len(loops), path.name
-        if s.boundary_edges <= 2000:
-            # the free half-edges, found from the polygon side of each boundary edge
-            vertex = lambda row: hestore.Vertex(mesh, arrays.vertex_ids[row])  # noqa: E731
-            free = [mesh.find_halfedge(vertex(b), vertex(a)) for a, b in ref["boundary"]]
-            assert all(h.is_boundary for h in free)
-            assert_loops_well_formed(mesh, loops, free)
-            assert s.boundary_loops == len(free_cycles(free)), path.name
-        else:
-            assert "boundary_loops" in ref, f"{path.name}: compare its pinched boundary some other way"
-        parts = mesh.components()
-        assert {frozenset(v.id for v in p) for p in parts} == ref["parts"], path.name
-        assert [min(v.id for v in p) for p in parts] == sorted(min(p) for p in ref["parts"])
-        for field, value in KNOWN.get(path.name, {}).items():
-            assert getattr(s, field) == value, (path.name, field)
-        if path.name in CLOSED:
-            assert s.is_closed and s.boundary_loops == 0 and loops == [], path.name
-        store.delete_mesh(path.stem)
-        checked += 1
-    assert checked == len(expected)
+    mesh = corpus.mesh(corpus_file)
+    s = mesh.stats()
+    arrays = mesh.to_arrays()
+    ref = reference(arrays)
+    for field in (
+        "vertices", "isolated_vertices", "edges", "loops", "polygons", "boundary_edges", "components",
+        "euler_characteristic", "pinched_vertices", "is_closed", "genus",
+    ):
+        assert getattr(s, field) == ref[field], (corpus_file, field, getattr(s, field), ref[field])
+    assert s.parallel_edges == s.wire_edges == 0, corpus_file
+    assert s.halfedges == 2 * s.edges and sum(s.polygon_sizes.values()) == s.polygons
+    assert s.is_manifold == (not ref["pinched_vertices"]), corpus_file
+    loops = mesh.boundary_loops()
+    assert sum(len(x) for x in loops) == s.boundary_edges, corpus_file
+    if "boundary_loops" in ref:
+        assert s.boundary_loops == ref["boundary_loops"] == len(loops), corpus_file
+    if s.boundary_edges <= 2000:
+        # the free half-edges, found from the polygon side of each boundary edge
+        vertex = lambda row: hestore.Vertex(mesh, arrays.vertex_ids[row])  # noqa: E731
+        free = [mesh.find_halfedge(vertex(b), vertex(a)) for a, b in ref["boundary"]]
+        assert all(h.is_boundary for h in free)
+        assert_loops_well_formed(mesh, loops, free)
+        assert s.boundary_loops == len(free_cycles(free)), corpus_file
+    else:
+        assert "boundary_loops" in ref, f"{corpus_file}: compare its pinched boundary some other way"
+    parts = mesh.components()
+    assert {frozenset(v.id for v in p) for p in parts} == ref["parts"], corpus_file
+    assert [min(v.id for v in p) for p in parts] == sorted(min(p) for p in ref["parts"])
+    for field, value in KNOWN.get(corpus_file, {}).items():
+        assert getattr(s, field) == value, (corpus_file, field)
+    if corpus_file in CLOSED:
+        assert s.is_closed and s.boundary_loops == 0 and loops == [], corpus_file

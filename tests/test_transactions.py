@@ -29,16 +29,6 @@ from hestore.errors import (
 from helpers import dump
 
 
-def dump_store(store) -> dict:
-    """Every row of every table as the store's own connection sees it (its open block included)."""
-    return dump(store)
-
-
-def dump_url(url) -> dict:
-    """Every row of every table as a fresh connection sees it: committed data only."""
-    return dump(url)
-
-
 class Boom(Exception):
     """Raised on purpose to leave a block."""
 
@@ -84,7 +74,7 @@ def other(db_url):
 
 
 def test_block_commits_everything_together(store, mesh, other, db_url):
-    before = dump_url(db_url)
+    before = dump(db_url)
     seen = other.mesh("m")
     with store.transaction():
         assert store.in_transaction
@@ -94,21 +84,21 @@ def test_block_commits_everything_together(store, mesh, other, db_url):
         mesh.add_edge(c, d)
         # nothing is visible to the other connection before the commit
         assert seen.counts() == hestore.Counts(0, 0, 0, 0)
-        assert dump_url(db_url) == before
+        assert dump(db_url) == before
     assert not store.in_transaction
     assert seen.counts() == hestore.Counts(vertices=4, halfedges=8, edges=4, polygons=1)
     assert [x.id for x in seen.polygon(p.id).vertices()] == [a.id, b.id, c.id]
     assert seen.revision == 1
     assert seen.check() == []
-    assert dump_url(db_url) == dump_store(store)
+    assert dump(db_url) == dump(store)
 
 
 def test_exception_rolls_back_everything_byte_for_byte(store, mesh, db_url):
     h = build(mesh)
     spare = store.create_mesh("spare", allow_loops=False)
     spare.add_edge(spare.add_vertex(), spare.add_vertex())
-    before = dump_store(store)
-    assert dump_url(db_url) == before
+    before = dump(store)
+    assert dump(db_url) == before
     rev = mesh.revision
 
     with pytest.raises(Boom):
@@ -126,12 +116,12 @@ def test_exception_rolls_back_everything_byte_for_byte(store, mesh, db_url):
             store.create_mesh("created")
             store.delete_mesh("spare")
             assert mesh.check() == []
-            assert dump_store(store) != before
+            assert dump(store) != before
             raise Boom
 
     assert not store.in_transaction
-    assert dump_store(store) == before
-    assert dump_url(db_url) == before
+    assert dump(store) == before
+    assert dump(db_url) == before
     assert mesh.revision == rev
     assert store.meshes() == ["m", "spare"]
     assert mesh.check() == [] and spare.check() == []
@@ -144,12 +134,12 @@ def test_exception_rolls_back_everything_byte_for_byte(store, mesh, db_url):
 
 def test_keyboard_interrupt_rolls_back_too(store, mesh, db_url):
     build(mesh)
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(KeyboardInterrupt):
         with store.transaction():
             mesh.add_vertex()
             raise KeyboardInterrupt
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
 
 
 # --------------------------------------------------------------------------
@@ -161,26 +151,26 @@ def test_nested_inner_rollback_keeps_outer_edits(store, mesh, db_url):
         a = mesh.add_vertex()
         b = mesh.add_vertex()
         mesh.add_edge(a, b)
-        at_savepoint = dump_store(store)
+        at_savepoint = dump(store)
         with pytest.raises(Boom):
             with store.transaction():
                 c = mesh.add_vertex()
                 mesh.add_polygon([a, b, c])
                 mesh.remove_vertex(a)
                 raise Boom
-        assert dump_store(store) == at_savepoint
+        assert dump(store) == at_savepoint
         assert mesh.counts() == hestore.Counts(vertices=2, halfedges=2, edges=1, polygons=0)
         d = mesh.add_vertex()
         mesh.add_polygon([a, b, d])
     assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
     assert mesh.revision == 1
     assert mesh.check() == []
-    assert dump_url(db_url) == dump_store(store)
+    assert dump(db_url) == dump(store)
 
 
 def test_nested_inner_commit_outer_rollback_loses_both(store, mesh, db_url):
     build(mesh)
-    before = dump_url(db_url)
+    before = dump(db_url)
     rev = mesh.revision
     with pytest.raises(Boom):
         with store.transaction():
@@ -189,25 +179,25 @@ def test_nested_inner_commit_outer_rollback_loses_both(store, mesh, db_url):
                 mesh.add_polygon([mesh.add_vertex() for _ in range(4)])
             assert mesh.counts().polygons == BUILT_COUNTS.polygons + 1
             raise Boom
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
     assert mesh.revision == rev
 
 
 def test_three_levels(store, mesh, db_url):
-    start = dump_url(db_url)
+    start = dump(db_url)
     with store.transaction():
         v1 = mesh.add_vertex()
-        level1 = dump_store(store)
+        level1 = dump(store)
         with store.transaction():
             v2 = mesh.add_vertex()
             mesh.add_edge(v1, v2)
-            level2 = dump_store(store)
+            level2 = dump(store)
             with pytest.raises(Boom):
                 with store.transaction():
                     v3 = mesh.add_vertex()
                     mesh.add_polygon([v1, v2, v3])
                     raise Boom
-            assert dump_store(store) == level2
+            assert dump(store) == level2
             with store.transaction():  # a third level that commits into the second
                 v4 = mesh.add_vertex()
                 p = mesh.add_polygon([v1, v2, v4])
@@ -222,17 +212,17 @@ def test_three_levels(store, mesh, db_url):
                         mesh.add_vertex()
                 raise Boom
         assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
-        assert dump_url(db_url) == start  # nothing committed yet
+        assert dump(db_url) == start  # nothing committed yet
         assert level1 != level2
     assert mesh.counts() == hestore.Counts(vertices=3, halfedges=6, edges=3, polygons=1)
     assert mesh.revision == 1
     assert mesh.check() == []
-    assert dump_url(db_url) == dump_store(store)
+    assert dump(db_url) == dump(store)
 
 
 def test_three_levels_innermost_commit_outermost_rollback(store, mesh, db_url):
     build(mesh)
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(Boom):
         with store.transaction():
             with store.transaction():
@@ -240,7 +230,7 @@ def test_three_levels_innermost_commit_outermost_rollback(store, mesh, db_url):
                     mesh.add_vertex()
                 mesh.add_vertex()
             raise Boom
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
 
 
 # --------------------------------------------------------------------------
@@ -322,12 +312,12 @@ def _case(mesh, label):
 @pytest.mark.parametrize("label", CASE_LABELS)
 def test_failed_operation_outside_block_changes_nothing(store, mesh, db_url, label):
     h, (_, error, op) = _case(mesh, label)
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(error):
         op()
     assert not store.in_transaction
-    assert dump_store(store) == before
-    assert dump_url(db_url) == before
+    assert dump(store) == before
+    assert dump(db_url) == before
     # the store goes on working
     mesh.add_edge(h["v"][4], h["iso"])
     assert mesh.check() == []
@@ -336,21 +326,21 @@ def test_failed_operation_outside_block_changes_nothing(store, mesh, db_url, lab
 @pytest.mark.parametrize("label", CASE_LABELS)
 def test_failed_operation_inside_block_changes_nothing_and_block_goes_on(store, mesh, db_url, label):
     h, (_, error, op) = _case(mesh, label)
-    committed = dump_url(db_url)
+    committed = dump(db_url)
     rev = mesh.revision
     with store.transaction():
         v = mesh.add_vertex((1.0, 2.0, 3.0))  # an edit before the failure
-        before = dump_store(store)
+        before = dump(store)
         with pytest.raises(error):
             op()
         assert store.in_transaction
-        assert dump_store(store) == before
+        assert dump(store) == before
         assert mesh.check() == []
         mesh.add_edge(v, h["iso"])  # and one after it
     assert mesh.revision == rev + 1
     assert mesh.check() == []
-    after = dump_url(db_url)
-    assert after == dump_store(store)
+    after = dump(db_url)
+    assert after == dump(store)
     assert len(after["vertices"]) == len(committed["vertices"]) + 1
     assert len(after["edges"]) == len(committed["edges"]) + 1
     assert after["polygons"] == committed["polygons"]
@@ -359,13 +349,13 @@ def test_failed_operation_inside_block_changes_nothing_and_block_goes_on(store, 
 @pytest.mark.parametrize("label", CASE_LABELS)
 def test_block_whose_only_edit_failed_does_not_bump_revision(store, mesh, db_url, label):
     h, (_, error, op) = _case(mesh, label)
-    before = dump_url(db_url)
+    before = dump(db_url)
     revs = {name: store.mesh(name).revision for name in store.meshes()}
     with store.transaction():
         with pytest.raises(error):
             op()
     assert {name: store.mesh(name).revision for name in store.meshes()} == revs
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
 
 
 # --------------------------------------------------------------------------
@@ -437,16 +427,16 @@ def test_revision_block_with_can_add_polygon_only_is_zero(store, mesh, db_url):
     """`can_add_polygon` writes nothing, also inside a block (and also when it would create edges)."""
     h = build(mesh)
     rev = mesh.revision
-    before = dump_url(db_url)
+    before = dump(db_url)
     with store.transaction():
         assert mesh.can_add_polygon([h["v"][1], h["v"][0], h["v"][3]]) is True  # would use existing edges
         assert mesh.can_add_polygon(list(h["t1"].halfedges())) is False
-        assert dump_store(store) == before
+        assert dump(store) == before
         assert mesh.can_add_polygon([h["v"][4], h["iso"], h["v"][1]]) is True  # would create edges
-        assert dump_store(store) == before
+        assert dump(store) == before
         assert mesh.counts() == BUILT_COUNTS
     assert mesh.revision == rev
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
 
 
 def test_can_add_polygon_in_block_then_real_edits(store, mesh):
@@ -546,7 +536,7 @@ def test_reads_inside_block_see_own_uncommitted_edits(store, mesh, other):
 def test_other_connection_sees_only_committed_state(store, mesh, other, db_url):
     h = build(mesh)
     seen = other.mesh("m")
-    committed = dump_url(db_url)
+    committed = dump(db_url)
     rev = seen.revision
     with store.transaction():
         mesh.remove_vertex(h["v"][0])
@@ -562,7 +552,7 @@ def test_other_connection_sees_only_committed_state(store, mesh, other, db_url):
             other.mesh("n")
         assert seen.check() == []
         assert h["t1"].mesh is mesh and seen.polygon(h["t1"].id).degree == 3
-        assert dump_url(db_url) == committed
+        assert dump(db_url) == committed
     assert seen.counts() == hestore.Counts(
         vertices=BUILT_COUNTS.vertices - 1 + 5,
         halfedges=BUILT_COUNTS.halfedges - 6 + 10,
@@ -573,18 +563,18 @@ def test_other_connection_sees_only_committed_state(store, mesh, other, db_url):
     assert other.meshes() == ["m", "n"]
     assert other.mesh("n").counts().vertices == 1
     assert seen.check() == []
-    assert dump_url(db_url) == dump_store(other) == dump_store(store)
+    assert dump(db_url) == dump(other) == dump(store)
 
 
 def test_other_connection_never_sees_rolled_back_block(store, mesh, other, db_url):
     build(mesh)
-    before = dump_store(other)
+    before = dump(other)
     with pytest.raises(Boom):
         with store.transaction():
             mesh.add_vertex()
-            assert dump_store(other) == before
+            assert dump(other) == before
             raise Boom
-    assert dump_store(other) == before
+    assert dump(other) == before
 
 
 # --------------------------------------------------------------------------
@@ -592,7 +582,7 @@ def test_other_connection_never_sees_rolled_back_block(store, mesh, other, db_ur
 
 
 def test_create_mesh_rolls_back(store, db_url):
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(Boom):
         with store.transaction():
             m = store.create_mesh("a")
@@ -602,7 +592,7 @@ def test_create_mesh_rolls_back(store, db_url):
     assert store.meshes() == []
     with pytest.raises(MeshNotFoundError):
         store.mesh("a")
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
     # the name is free again
     again = store.create_mesh("a")
     assert again.counts().vertices == 0
@@ -610,27 +600,27 @@ def test_create_mesh_rolls_back(store, db_url):
 
 def test_delete_mesh_rolls_back(store, mesh, db_url):
     build(mesh)
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(Boom):
         with store.transaction():
             store.delete_mesh("m")
             assert store.meshes() == []
             raise Boom
     assert store.meshes() == ["m"]
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
     assert mesh.check() == [] and mesh.counts() == BUILT_COUNTS
 
 
 def test_delete_mesh_after_edits_in_same_block_rolls_back(store, mesh, db_url):
     build(mesh)
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(Boom):
         with store.transaction():
             mesh.add_vertex()
             store.delete_mesh("m")
             store.create_mesh("m").add_vertex()
             raise Boom
-    assert dump_url(db_url) == before == dump_store(store)
+    assert dump(db_url) == before == dump(store)
 
 
 def test_catalogue_changes_in_savepoints(store, db_url):
@@ -650,7 +640,7 @@ def test_catalogue_changes_in_savepoints(store, db_url):
     assert store.meshes() == ["a", "c"]
     assert store.mesh("a").counts().vertices == 1
     assert store.mesh("c").allow_loops is False
-    assert dump_url(db_url) == dump_store(store)
+    assert dump(db_url) == dump(store)
 
 
 def test_delete_mesh_commit_removes_every_row(store, mesh, db_url):
@@ -658,10 +648,10 @@ def test_delete_mesh_commit_removes_every_row(store, mesh, db_url):
     keep = store.create_mesh("keep")
     keep.add_polygon([keep.add_vertex() for _ in range(3)])
     # meshes rows start with the mesh id, element rows with their mesh_id
-    kept = {t: [r for r in rows if r[0] == keep.id] for t, rows in dump_url(db_url).items()}
+    kept = {t: [r for r in rows if r[0] == keep.id] for t, rows in dump(db_url).items()}
     with store.transaction():
         store.delete_mesh("m")
-    after = dump_url(db_url)
+    after = dump(db_url)
     assert after == kept
 
 
@@ -711,7 +701,7 @@ def test_mesh_object_of_deleted_mesh_never_reaches_a_newer_mesh(store, mesh, db_
     store.delete_mesh("m")
     again = store.create_mesh(new_name)
     again.add_vertex()
-    before = dump_url(db_url)
+    before = dump(db_url)
     assert again != mesh
     with pytest.raises(MeshNotFoundError):
         mesh.add_vertex()
@@ -719,7 +709,7 @@ def test_mesh_object_of_deleted_mesh_never_reaches_a_newer_mesh(store, mesh, db_
         mesh.revision
     with pytest.raises(ElementNotFoundError):
         v.degree
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
     assert again.counts().vertices == 1
 
 
@@ -833,14 +823,14 @@ def test_close_inside_block_rolls_back(db_url):
     store = hestore.open(db_url)
     m = store.create_mesh("m")
     m.add_vertex()
-    before = dump_url(db_url)
+    before = dump(db_url)
     # Leaving the block after the store was closed cannot commit: it must say so
     # with a hestore error, and nothing of the block may be stored.
     with pytest.raises(HestoreError):
         with store.transaction():
             m.add_vertex()
             store.close()
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
     with pytest.raises(HestoreError):
         m.add_vertex()
 
@@ -857,14 +847,14 @@ def test_transaction_on_a_closed_store_raises_hestore_error(db_url):
 def test_close_inside_nested_block_rolls_back_everything(db_url):
     store = hestore.open(db_url)
     m = store.create_mesh("m")
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(HestoreError):
         with store.transaction():
             m.add_vertex()
             with store.transaction():
                 m.add_vertex()
                 store.close()
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
     assert not store.in_transaction
 
 
@@ -872,26 +862,26 @@ def test_close_inside_block_data_is_rolled_back(db_url):
     """Whatever the block exit raises, close() inside a block stores nothing of it."""
     store = hestore.open(db_url)
     m = store.create_mesh("m")
-    before = dump_url(db_url)
+    before = dump(db_url)
     try:
         with store.transaction():
             m.add_polygon([m.add_vertex() for _ in range(3)])
             store.close()
     except Exception:
         pass
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
 
 
 def test_store_context_manager_rolls_back_open_block(db_url):
     with hestore.open(db_url) as store:
         store.create_mesh("m")
-    before = dump_url(db_url)
+    before = dump(db_url)
     with pytest.raises(Boom):
         with hestore.open(db_url) as store:
             with store.transaction():
                 store.mesh("m").add_vertex()
                 raise Boom
-    assert dump_url(db_url) == before
+    assert dump(db_url) == before
 
 
 def test_a_new_block_after_failures_works(store, mesh):

@@ -785,9 +785,9 @@ def test_cycles_labels_functional_graphs():
 def test_grid_200_checks_fast():
     arrays = grid_arrays(200)
     assert len(arrays.p_id) == 80_000
-    start = time.perf_counter()
+    start = time.process_time()  # this process's: a busy machine does not add to it
     report = check_arrays(arrays)
-    elapsed = time.perf_counter() - start
+    elapsed = time.process_time() - start
     assert report == []
     assert elapsed < 5.0, f"check_arrays took {elapsed:.2f} s on 80k triangles"
     # one corruption in a big mesh is found and named
