@@ -45,7 +45,7 @@ def test_every_module_above_the_session_is_kept_from_sqlalchemy():
     # The forbidden contract lists its modules: it must list every one the layers put above the session.
     contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]["contracts"]
     layers = next(c for c in contracts if c.get("containers") == ["hestore"])["layers"]
-    above = {f"hestore.{m.strip()}" for layer in layers[: layers.index("session")] for m in layer.split("|")}
+    above = {f"hestore.{m.strip()}" for layer in layers[: layers.index("_session")] for m in layer.split("|")}
     [sql] = [c for c in contracts if c["type"] == "forbidden"]
     assert sql["forbidden_modules"] == ["sqlalchemy"]
     assert set(sql["source_modules"]) == above

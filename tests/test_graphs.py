@@ -41,6 +41,7 @@ from hypothesis.stateful import (
 
 import hestore
 from hestore import graphs, schema
+from hestore._session import identity
 from hestore.cli import demo
 from hestore.errors import HestoreError, InvalidInputError, InvariantViolationError, MeshNotFoundError, TopologyError
 
@@ -525,13 +526,13 @@ def test_errors(mesh, store):
     with pytest.raises(InvalidInputError, match="'multigraph', 'graph', 'halfedge', 'dual'"):
         mesh.to_networkx("digraph")
     with pytest.raises(InvalidInputError):
-        graphs.to_networkx(mesh.ref, kind=None)
+        graphs.to_networkx(identity(mesh), kind=None)
     G = mesh.to_networkx()
     store.delete_mesh("m")
     with pytest.raises(MeshNotFoundError, match="deleted"):
         mesh.to_networkx()
     with pytest.raises(MeshNotFoundError):
-        graphs.to_networkx(mesh.ref, "dual")
+        graphs.to_networkx(identity(mesh), "dual")
     assert G.number_of_nodes() == 1
     store.close()
     with pytest.raises(HestoreError, match="closed"):

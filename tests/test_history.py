@@ -45,7 +45,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hestore
-from hestore import persistence, schema
+from hestore import schema
+from hestore import _persistence as persistence
 from hestore.errors import (
     ElementNotFoundError,
     HestoreError,

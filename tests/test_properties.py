@@ -29,7 +29,7 @@ import sqlalchemy as sa
 import hestore
 from hestore import schema
 from hestore.errors import ElementNotFoundError, HestoreError, InvalidInputError, PropertyNotFoundError
-from hestore.values import Property
+from hestore._values import Property
 
 from helpers import Rollback
 

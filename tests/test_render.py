@@ -14,6 +14,7 @@ import sqlalchemy as sa
 
 import hestore
 from hestore import render as rendering
+from hestore._session import identity
 from hestore.cli import main
 
 matplotlib = pytest.importorskip("matplotlib")
@@ -104,7 +105,7 @@ def test_png_of_a_small_mesh(store, out):
 def test_svg_of_a_small_mesh(store, out):
     mesh = pyramid(store)
     path = out / "pyramid.svg"
-    rendering.render(mesh.ref, str(path), size=(400, 300))
+    rendering.render(identity(mesh), str(path), size=(400, 300))
     root = ET.parse(path).getroot()
     assert root.tag == f"{SVG}svg"
     assert (root.get("width"), root.get("height")) == ("288pt", "216pt")  # 400 x 300 px at 100 dpi, in points
@@ -131,7 +132,7 @@ def test_large_mesh_png_and_svg(corpus, corpus_file, out, backend):
     assert large_mesh.counts().polygons > rendering.MAX_POLYGONS
     stages = []
     figure = Figure(figsize=(6, 4.5), dpi=100)
-    ax = rendering.plot(large_mesh.ref, figure.add_axes((0, 0, 1, 1)),
+    ax = rendering.plot(identity(large_mesh), figure.add_axes((0, 0, 1, 1)),
                         progress=lambda stage, done, total: stages.append(stage))
     assert {"read", "draw"} <= set(stages)
     assert "check" not in stages  # above CHECK_POLYGONS the check is skipped by default, and the note says so

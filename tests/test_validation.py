@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hestore import schema
-from hestore import columns
+from hestore import _columns as columns
 from hestore.arrays import Index, TopologyArrays, cycles
 from hestore.errors import InvalidInputError, Violation
 from hestore.validation import (

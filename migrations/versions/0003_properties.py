@@ -5,7 +5,7 @@ Revises: 0002
 Create Date: 2026-11-23
 
 Values are plain SQL rows keyed ``(mesh_id, property, id, part)``: up to four
-components of one element's value per row (see ``hestore.values``).
+components of one element's value per row (see ``hestore._values``).
 Existing meshes get ``next_property = 0`` and no properties.
 
 On SQLite, float columns (the new ``property_reals`` values, and the

@@ -50,7 +50,7 @@ from hestore.history import Diff, Revision
 from hestore.mesh import Counts, Mesh
 from hestore.store import Store, open
 from hestore.summary import Stats
-from hestore.values import Property
+from hestore._values import Property
 
 __version__ = "0.1.0"
 

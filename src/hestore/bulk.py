@@ -5,11 +5,11 @@ catalogue: `build_arrays` and `build_file` decide and build the half-edge
 structure of an import with `hestore.build` (`BuiltImport`, under one
 `ImportOptions`), and `write` hands its whole tables to the unit of work of
 the mesh `hestore.Store` created for it (`UnitOfWork.insert_bulk`), whose
-flush writes them in large batches (`hestore.columns`) like any other
+flush writes them in large batches (`hestore._columns`) like any other
 change. `to_arrays` and `export` read the tables back as columns in one
 snapshot and walk the polygon loops with numpy; `dual` computes the dual's
 polygon soup. Every function here is handed a mesh's identity
-(`hestore.session.MeshRef`) or arrays, never the store: the store decides
+(`hestore._session.MeshRef`) or arrays, never the store: the store decides
 names and creates meshes. File formats are `hestore.io`'s.
 
 File data other than positions and polygons travels as properties
@@ -40,7 +40,8 @@ import numpy as np
 from hestore import build as _build
 from hestore import io as mesh_io
 from hestore import properties as props
-from hestore import schema, values
+from hestore import schema
+from hestore import _values as values
 from hestore.arrays import (
     Index,
     Ragged,
@@ -51,13 +52,13 @@ from hestore.arrays import (
     positions as position_array,
     ragged,
 )
-from hestore.columns import position_request, request
+from hestore._columns import position_request, request
 from hestore.errors import InvalidInputError, NonOrientableError, TopologyError
 from hestore.progress import check_progress
-from hestore.session import MeshRef
-from hestore.unitofwork import BulkRows, BulkValues
+from hestore._session import MeshRef
+from hestore._unitofwork import BulkRows, BulkValues
 from hestore.urls import check_path
-from hestore.values import Property
+from hestore._values import Property
 
 __all__ = [
     "SkippedPolygon", "ImportReport", "ImportOptions", "BuiltImport", "MeshArrays", "name_of", "build_arrays",
@@ -449,7 +450,7 @@ def write(ref: MeshRef, built: BuiltImport, progress: Progress | None = None) ->
     """Write a built import into the new, empty mesh ``ref``: its four tables and file data, set-based.
 
     One edit of the mesh's unit of work, whose flush writes the tables in
-    large batches (`hestore.columns`); the caller's scope makes the creation
+    large batches (`hestore._columns`); the caller's scope makes the creation
     of the mesh and this one step.
     """
     a, pos = built.arrays, built.positions
@@ -555,11 +556,12 @@ def dual(ref: MeshRef) -> tuple[np.ndarray, Ragged]:
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> tetra = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
     >>> mesh = store.import_arrays("tetra", tetra, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]).mesh
-    >>> positions, polygons = dual(mesh.ref)
+    >>> positions, polygons = dual(identity(mesh))
     >>> positions.shape, polygons.offsets.tolist()
     ((4, 3), [0, 3, 6, 9, 12])
     """

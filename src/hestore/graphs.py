@@ -14,7 +14,7 @@ some vertices with the same builders, fed the rows of those vertices and of
 the half-edges between them (`hestore.traversal`) instead of whole columns.
 
 How a graph is made: the columns it needs are read in bulk, in one snapshot
-together with the revision (`hestore.columns.read_columns`); the grouping of
+together with the revision (`hestore._columns.read_columns`); the grouping of
 edges by end points and the insertion order are worked out with numpy; then
 networkx's own adjacency dicts (``G._node``, ``G._adj``, and ``G._pred`` for
 the directed kind) are filled directly by comprehensions over ``tolist()``
@@ -53,18 +53,18 @@ from hestore import properties as props
 from hestore import schema
 from hestore import traversal
 from hestore.arrays import Index, run_starts
-from hestore.columns import position_request, request
+from hestore._columns import position_request, request
 from hestore.errors import InvalidInputError, PropertyNotFoundError, shown
 from hestore.progress import check_progress
 from hestore.traversal import KINDS, LENGTH, NUMERIC
-from hestore.values import Property, check_choice, check_items
-from hestore.session import MeshRef
+from hestore._values import Property, check_choice, check_items
+from hestore._session import MeshRef
 
 # KINDS (the graph kinds `to_networkx` makes, the default first) and LENGTH (the derived edge attribute of
 # ``attrs``) are `hestore.traversal`'s, below networkx, so that the command line offers them without it.
 __all__ = ["KINDS", "LENGTH", "to_networkx"]
 
-#: The key of the graphs in `hestore.session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``,
+#: The key of the graphs in `hestore._session.Session.caches`: ``{(mesh id, kind): (revision, graph)}``,
 #: and ``{(mesh id, kind, attrs): (revision, graph)}`` for graphs with property attributes.
 CACHE = "graphs"
 
@@ -80,8 +80,8 @@ def to_networkx(
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     kind : {"multigraph", "graph", "halfedge", "dual"}
         Which graph:
 

@@ -21,7 +21,8 @@ from hestore import navigation as nav
 from hestore import properties as props
 from hestore import schema
 from hestore.errors import ElementNotFoundError, shown
-from hestore.values import check_integer
+from hestore._session import identity
+from hestore._values import check_integer
 
 __all__ = ["Vertex", "HalfEdge", "Edge", "Polygon", "Handle", "CLASSES", "element_id", "wrap"]
 
@@ -95,15 +96,15 @@ class Handle:
 
     def __getitem__(self, name: str):
         """The element's value of property ``name`` (see `hestore.Mesh.add_property`)."""
-        return props.value(self.mesh.ref, self.kind, self.id, name)
+        return props.value(identity(self.mesh), self.kind, self.id, name)
 
     def __setitem__(self, name: str, value) -> None:
         """Set the element's value of property ``name``: an edit like any other."""
-        props.set_value(self.mesh.ref, self.kind, self.id, name, value)
+        props.set_value(identity(self.mesh), self.kind, self.id, name, value)
 
     def __delitem__(self, name: str) -> None:
         """Unset the element's value of property ``name`` (back to the default)."""
-        props.set_value(self.mesh.ref, self.kind, self.id, name, None)
+        props.set_value(identity(self.mesh), self.kind, self.id, name, None)
 
 
 #: The handle class of each element kind, by its key in `hestore.schema.KINDS` (each class registers itself).
@@ -161,55 +162,55 @@ class Vertex(Handle):
     @property
     def halfedge(self) -> "HalfEdge | None":
         """An outgoing half-edge, a free one if there is any; ``None`` if isolated."""
-        h = nav.vertex_row(self.mesh.ref, self.id)[0]
+        h = nav.vertex_row(identity(self.mesh), self.id)[0]
         return None if h is None else wrap(HalfEdge, self.mesh, h)
 
     @property
     def position(self) -> tuple[float, float, float] | None:
         """``(x, y, z)``, or ``None``."""
-        row = nav.vertex_row(self.mesh.ref, self.id)
+        row = nav.vertex_row(identity(self.mesh), self.id)
         return None if row[1] is None else (row[1], row[2], row[3])
 
     @property
     def degree(self) -> int:
         """Number of outgoing half-edges (a self-loop counts twice)."""
-        return len(nav.star(self.mesh.ref, self.id))
+        return len(nav.star(identity(self.mesh), self.id))
 
     @property
     def is_isolated(self) -> bool:
         """Whether no edge touches this vertex."""
-        return nav.vertex_row(self.mesh.ref, self.id)[0] is None
+        return nav.vertex_row(identity(self.mesh), self.id)[0] is None
 
     @property
     def is_boundary(self) -> bool:
         """Whether a free half-edge leaves this vertex (or it is isolated)."""
-        return nav.is_boundary_vertex(self.mesh.ref, self.id)
+        return nav.is_boundary_vertex(identity(self.mesh), self.id)
 
     def outgoing(self) -> list["HalfEdge"]:
         """Outgoing half-edges, counter-clockwise from `halfedge`."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(m.ref, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_ID]) for r in nav.star(identity(m), self.id)]
 
     def incoming(self) -> list["HalfEdge"]:
         """Incoming half-edges (twins of `outgoing`, same order)."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(m.ref, self.id)]
+        return [wrap(HalfEdge, m, r[nav.STAR_TWIN]) for r in nav.star(identity(m), self.id)]
 
     def neighbors(self) -> list["Vertex"]:
         """One neighbour per outgoing half-edge: repeats for parallel edges, self for a loop."""
         m = self.mesh
-        return [wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(m.ref, self.id, targets=True)]
+        return [wrap(Vertex, m, r[nav.STAR_TARGET]) for r in nav.star(identity(m), self.id, targets=True)]
 
     def edges(self) -> list["Edge"]:
         """One edge per outgoing half-edge (a self-loop twice)."""
         m = self.mesh
-        return [wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(m.ref, self.id)]
+        return [wrap(Edge, m, r[nav.STAR_EDGE]) for r in nav.star(identity(m), self.id)]
 
     def polygons(self) -> list["Polygon"]:
         """Polygons around the vertex, counter-clockwise, free gaps skipped."""
         m = self.mesh
         polygon = nav.STAR_POLYGON
-        return [wrap(Polygon, m, r[polygon]) for r in nav.star(m.ref, self.id) if r[polygon] is not None]
+        return [wrap(Polygon, m, r[polygon]) for r in nav.star(identity(m), self.id) if r[polygon] is not None]
 
 
 @_of_kind("halfedge")
@@ -234,7 +235,7 @@ class HalfEdge(Handle):
     __slots__ = ()
 
     def _record(self) -> tuple:
-        return nav.halfedge_record(self.mesh.ref, self.id)
+        return nav.halfedge_record(identity(self.mesh), self.id)
 
     @property
     def next(self) -> "HalfEdge":
@@ -310,12 +311,12 @@ class HalfEdge(Handle):
     @property
     def vector(self) -> tuple[float, float, float] | None:
         """``target.position - origin.position``; ``None`` without positions."""
-        return nav.vector(self.mesh.ref, self.id)
+        return nav.vector(identity(self.mesh), self.id)
 
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self.mesh.ref, self.id)
+        return nav.length(identity(self.mesh), self.id)
 
     # Guibas–Stolfi and other vocabularies (SPEC §3).
     lnext = next
@@ -344,7 +345,7 @@ class Edge(Handle):
     __slots__ = ()
 
     def _row(self) -> tuple:
-        return nav.edge_row(self.mesh.ref, self.id)
+        return nav.edge_row(identity(self.mesh), self.id)
 
     @property
     def halfedge(self) -> HalfEdge:
@@ -366,7 +367,7 @@ class Edge(Handle):
     @property
     def length(self) -> float | None:
         """Euclidean length; ``None`` without positions."""
-        return nav.length(self.mesh.ref, self._row()[0])
+        return nav.length(identity(self.mesh), self._row()[0])
 
     def halfedges(self) -> tuple[HalfEdge, HalfEdge]:
         """``(halfedge, halfedge.twin)``."""
@@ -405,29 +406,29 @@ class Polygon(Handle):
     @property
     def halfedge(self) -> HalfEdge:
         """One half-edge of its loop."""
-        return wrap(HalfEdge, self.mesh, nav.polygon_halfedge(self.mesh.ref, self.id))
+        return wrap(HalfEdge, self.mesh, nav.polygon_halfedge(identity(self.mesh), self.id))
 
     @property
     def degree(self) -> int:
         """Number of half-edges (corners)."""
-        return len(nav.ring(self.mesh.ref, self.id))
+        return len(nav.ring(identity(self.mesh), self.id))
 
     def halfedges(self) -> list[HalfEdge]:
         """Its half-edges in ``next`` order from `halfedge`."""
         m = self.mesh
-        return [wrap(HalfEdge, m, r[0]) for r in nav.ring(m.ref, self.id)]
+        return [wrap(HalfEdge, m, r[0]) for r in nav.ring(identity(m), self.id)]
 
     def vertices(self) -> list[Vertex]:
         """Its corners, counter-clockwise."""
         m = self.mesh
-        return [wrap(Vertex, m, r[2]) for r in nav.ring(m.ref, self.id)]
+        return [wrap(Vertex, m, r[2]) for r in nav.ring(identity(m), self.id)]
 
     def edges(self) -> list[Edge]:
         """Its edges, in order."""
         m = self.mesh
-        return [wrap(Edge, m, r[3]) for r in nav.ring(m.ref, self.id)]
+        return [wrap(Edge, m, r[3]) for r in nav.ring(identity(m), self.id)]
 
     def neighbors(self) -> list["Polygon"]:
         """Polygons across its edges (``None`` sides skipped; itself where it meets itself)."""
         m = self.mesh
-        return [wrap(Polygon, m, r[4]) for r in nav.ring(m.ref, self.id) if r[4] is not None]
+        return [wrap(Polygon, m, r[4]) for r in nav.ring(identity(m), self.id) if r[4] is not None]

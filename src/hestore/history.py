@@ -1,12 +1,12 @@
 """History of a mesh: its revisions, what changed between two, and going back (SPEC §4.1).
 
 This module owns the meaning of history on top of the row versions the
-history engine reads and restores (`hestore.timeline`): `Revision` and
+history engine reads and restores (`hestore._timeline`): `Revision` and
 `Diff`, the net changes between two revisions (`diff`, computed from the
 rows that differ, so an element created and removed in between appears
 nowhere and a value written back unchanged is no change), the list of kept
 revisions (`history`), and the undo stack (`undo`, `redo`, `revert`).
-Reads of a past revision are the session's (`hestore.session.Session.view`);
+Reads of a past revision are the session's (`hestore._session.Session.view`);
 the mesh facade wraps them as ``mesh.at(r)``.
 
 The undo stack is derived from what each kept revision records it did
@@ -20,11 +20,12 @@ import json
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from hestore import schema, timeline
+from hestore import schema
+from hestore import _timeline as timeline
 from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
-from hestore.journal import KINDS
-from hestore.values import check_integer, check_revision, property_of, value_of
-from hestore.session import MeshRef
+from hestore._journal import KINDS
+from hestore._values import check_integer, check_revision, property_of, value_of
+from hestore._session import MeshRef
 
 __all__ = [
     "Revision", "Diff", "KINDS", "history", "diff", "undo", "redo", "revert", "prune", "changes_of",
@@ -85,7 +86,7 @@ class Diff:
 
 
 def diff_of(versions: dict) -> Diff:
-    """A `Diff` from `hestore.timeline.versions`' rows at the two revisions."""
+    """A `Diff` from `hestore._timeline.versions`' rows at the two revisions."""
     created, removed, changed = ({k: set() for k in KINDS} for _ in range(3))
     for kind in KINDS:
         before, after = ({row[0]: row for row in rows} for rows in versions[schema.KINDS[kind].table.name])

@@ -34,9 +34,9 @@ import numpy as np
 from hestore import bulk, navigation
 from hestore.errors import InvalidInputError, require
 from hestore.io import file_errors
-from hestore.session import MeshRef
+from hestore._session import MeshRef
 from hestore.urls import check_path
-from hestore.values import check_arraylike
+from hestore._values import check_arraylike
 
 __all__ = [
     "MESHIO_EXTENSIONS",

@@ -2,12 +2,12 @@
 
 This module owns `Mesh`, the object users hold: it checks its arguments
 (types, ownership of handles, positions), then delegates — edits to
-`hestore.kernel` inside the session's atomic edit scope, reads to
+`hestore._kernel` inside the session's atomic edit scope, reads to
 `hestore.navigation`, summaries to `hestore.summary`, checks to
 `hestore.validation`, bulk export to `hestore.bulk`, graph views to
 `hestore.graphs`, pictures to `hestore.render` — and turns the ``(kind, id)`` pairs of a refused
 operation's `TopologyError` into handles. It holds no state beyond its
-identity (`hestore.session.MeshRef`) and policy.
+identity (`hestore._session.MeshRef`) and policy.
 """
 
 from __future__ import annotations
@@ -16,21 +16,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Iterable, Iterator, Sequence
 
-from hestore import (
-    bulk,
-    euler,
-    history,
-    interop,
-    kernel,
-    navigation,
-    properties,
-    render,
-    schema,
-    summary,
-    traversal,
-    validation,
-    values,
-)
+from hestore import bulk, history, interop, navigation, properties, render, schema, summary, traversal, validation
+from hestore import _euler as euler, _kernel as kernel, _values as values
 from hestore.errors import (
     ElementNotFoundError,
     InvalidInputError,
@@ -41,10 +28,10 @@ from hestore.errors import (
     shown,
 )
 from hestore.handles import CLASSES, Edge, HalfEdge, Handle, Polygon, Vertex, element_id, wrap
-from hestore.queries import Query, elements
-from hestore.values import Property
-from hestore.session import MeshRef
-from hestore.unitofwork import UnitOfWork
+from hestore._queries import Query, elements
+from hestore._values import Property
+from hestore._session import MeshRef
+from hestore._unitofwork import UnitOfWork
 from hestore.urls import check_path
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -73,10 +60,6 @@ class Mesh:
     ----------
     store : Store
         The store the mesh lives in.
-    session : hestore.session.Session
-        The store's session (the door every read and write goes through).
-    ref : hestore.session.MeshRef
-        The mesh's identity in that session.
     allow_loops, allow_multi_edges : bool
         The mesh's policy (read-only: it is the mesh's identity's).
 
@@ -94,46 +77,48 @@ class Mesh:
     (False, 4)
     """
 
-    __slots__ = ("store", "session", "ref")
+    # The session and the mesh's identity in it are the engine's, not the API: the layers below the facade
+    # read the identity through `hestore._session.identity`.
+    __slots__ = ("store", "_session", "_ref")
 
     def __init__(self, store: Any, ref: MeshRef) -> None:
         self.store = store
-        self.session = ref.session
-        self.ref = ref
+        self._session = ref.session
+        self._ref = ref
 
     @property
     def allow_loops(self) -> bool:
         """Whether self-loop edges may be added."""
-        return self.ref.allow_loops
+        return self._ref.allow_loops
 
     @property
     def allow_multi_edges(self) -> bool:
         """Whether parallel edges may be added."""
-        return self.ref.allow_multi_edges
+        return self._ref.allow_multi_edges
 
     @property
     def id(self) -> int:
         """The mesh's id in its store's ``meshes`` table (the ``mesh_id`` of its rows)."""
-        return self.ref.id
+        return self._ref.id
 
     @property
     def name(self) -> str:
         """The mesh's name."""
-        return self.ref.name
+        return self._ref.name
 
     def __repr__(self) -> str:
-        at = "" if self.ref.revision is None else f".at({self.ref.revision})"
+        at = "" if self._ref.revision is None else f".at({self._ref.revision})"
         return f"Mesh({self.name!r}){at}"
 
     def _described(self) -> str:
-        at = "" if self.ref.revision is None else f" at revision {self.ref.revision}"
+        at = "" if self._ref.revision is None else f" at revision {self._ref.revision}"
         return f"mesh {self.name!r}{at}"
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Mesh) and other.ref is self.ref
+        return isinstance(other, Mesh) and other._ref is self._ref
 
     def __hash__(self) -> int:
-        return hash(self.ref)
+        return hash(self._ref)
 
     # -- argument checking --------------------------------------------------
 
@@ -152,14 +137,14 @@ class Mesh:
     def _edit(self, *, dry_run: bool = False) -> Iterator[UnitOfWork]:
         """The session's edit scope (or dry run), with a refusal's elements as handles of this mesh."""
         try:
-            with (self.session.dry_run if dry_run else self.session.editing)(self.ref) as uow:
+            with (self._session.dry_run if dry_run else self._session.editing)(self._ref) as uow:
                 yield uow
         except TopologyError as exc:
             exc.elements = tuple(CLASSES[kind](self, i) for kind, i in exc.refs if kind in CLASSES)
             raise
 
     def _fetch(self, query: Query) -> list[tuple]:
-        return self.session.fetch(self.ref, query, {})
+        return self._session.fetch(self._ref, query, {})
 
     # -- summaries ----------------------------------------------------------
 
@@ -169,12 +154,12 @@ class Mesh:
 
         For a view of the past (`at`), the revision it shows.
         """
-        if self.ref.revision is not None:
-            self.session.check()
-            return self.ref.revision
+        if self._ref.revision is not None:
+            self._session.check()
+            return self._ref.revision
         rows = self._fetch(elements.revision)
         if not rows:
-            raise self.session.missing(self.ref)
+            raise self._session.missing(self._ref)
         return rows[0][0]
 
     # -- history (SPEC §4.1) -------------------------------------------------
@@ -182,7 +167,7 @@ class Mesh:
     @property
     def is_view(self) -> bool:
         """Whether this is a read-only view of a past revision (`at`)."""
-        return self.ref.revision is not None
+        return self._ref.revision is not None
 
     def at(self, revision: int) -> "Mesh":
         """A read-only view of the mesh as it was at ``revision`` (``at(0)`` is empty).
@@ -206,9 +191,9 @@ class Mesh:
         >>> mesh.counts().polygons, mesh.at(1).counts().polygons, mesh.at(0).counts().vertices
         (0, 1, 0)
         """
-        base = self.ref.base or self.ref
+        base = self._ref.base or self._ref
         number = values.check_revision(revision)
-        return Mesh(self.store, self.session.view(base, number))
+        return Mesh(self.store, self._session.view(base, number))
 
     def history(self, limit: int | None = None) -> list[history.Revision]:
         """The kept revisions from 1 up, newest first; see `hestore.history.history`."""
@@ -250,13 +235,13 @@ class Mesh:
 
     def _base(self) -> MeshRef:
         """The identity of the mesh itself (of a view: of the mesh it shows)."""
-        return self.ref.base or self.ref
+        return self._ref.base or self._ref
 
     def _writable(self) -> MeshRef:
         """The mesh's identity, for an edit: `ReadOnlyError` for a view."""
-        if self.ref.revision is not None:
-            self.session.lock(self.ref)  # raises ReadOnlyError
-        return self.ref
+        if self._ref.revision is not None:
+            self._session.lock(self._ref)  # raises ReadOnlyError
+        return self._ref
 
     def counts(self) -> Counts:
         """Number of vertices, half-edges, edges and polygons.
@@ -270,26 +255,26 @@ class Mesh:
         """
         exists, *counts = self._fetch(elements.counts)[0]
         if exists is None:
-            raise self.session.missing(self.ref)
+            raise self._session.missing(self._ref)
         return Counts(*counts)
 
     def stats(self, progress=None) -> summary.Stats:
         """Counts and topological invariants of the mesh; see `hestore.summary.stats` (and its ``progress``)."""
-        return summary.stats(self.ref, progress)
+        return summary.stats(self._ref, progress)
 
     def boundary_loops(self) -> list[list[HalfEdge]]:
         """The cycles of free half-edges, each in ``next`` order; see `hestore.summary.boundary_loops`."""
-        return [[wrap(HalfEdge, self, h) for h in loop] for loop in summary.boundary_loops(self.ref)]
+        return [[wrap(HalfEdge, self, h) for h in loop] for loop in summary.boundary_loops(self._ref)]
 
     def components(self, progress=None) -> list[set[Vertex]]:
         """Connected components of the vertex–edge graph; see `hestore.summary.components` (and its ``progress``)."""
-        return [{wrap(Vertex, self, v) for v in part} for part in summary.components(self.ref, progress)]
+        return [{wrap(Vertex, self, v) for v in part} for part in summary.components(self._ref, progress)]
 
     # -- lookup and iteration -----------------------------------------------
 
     def _lookup(self, kind: str, i: object) -> Handle:
         i = element_id(i, schema.KINDS[kind].label)  # refuses what cannot be an id
-        navigation.exists(self.ref, kind, i)
+        navigation.exists(self._ref, kind, i)
         return wrap(CLASSES[kind], self, i)
 
     def vertex(self, id: int) -> Vertex:
@@ -323,19 +308,19 @@ class Mesh:
 
     def vertices(self) -> Iterator[Vertex]:
         """All vertices, in id order."""
-        return (Vertex(self, i) for i in navigation.ids(self.ref, "vertex"))
+        return (Vertex(self, i) for i in navigation.ids(self._ref, "vertex"))
 
     def halfedges(self) -> Iterator[HalfEdge]:
         """All half-edges, in id order."""
-        return (HalfEdge(self, i) for i in navigation.ids(self.ref, "halfedge"))
+        return (HalfEdge(self, i) for i in navigation.ids(self._ref, "halfedge"))
 
     def edges(self) -> Iterator[Edge]:
         """All edges, in id order."""
-        return (Edge(self, i) for i in navigation.ids(self.ref, "edge"))
+        return (Edge(self, i) for i in navigation.ids(self._ref, "edge"))
 
     def polygons(self) -> Iterator[Polygon]:
         """All polygons, in id order."""
-        return (Polygon(self, i) for i in navigation.ids(self.ref, "polygon"))
+        return (Polygon(self, i) for i in navigation.ids(self._ref, "polygon"))
 
     def find_halfedge(self, a: Vertex, b: Vertex) -> HalfEdge | None:
         """A half-edge from ``a`` to ``b``, preferring a free one; ``None`` if there is none.
@@ -349,7 +334,7 @@ class Mesh:
         >>> mesh.find_halfedge(a, b), mesh.find_halfedge(a, c)
         (HalfEdge(0), None)
         """
-        h = navigation.find_halfedge(self.ref, self._own(a, Vertex), self._own(b, Vertex))
+        h = navigation.find_halfedge(self._ref, self._own(a, Vertex), self._own(b, Vertex))
         return None if h is None else HalfEdge(self, h)
 
     # -- editing ------------------------------------------------------------
@@ -916,7 +901,7 @@ class Mesh:
         >>> mesh.set_position(v, None); v.position is None
         True
         """
-        properties.set_position(self.ref, self._element(v, Vertex), position)
+        properties.set_position(self._ref, self._element(v, Vertex), position)
 
     def set_positions(self, vertices, positions) -> None:
         """Move many vertices at once: one set-based write; see `hestore.properties.set_positions`.
@@ -946,19 +931,19 @@ class Mesh:
         >>> mesh.add_property("polygon", "label", "str", default="")
         Property(kind='polygon', name='label', dtype='str', shape=(), default='')
         """
-        return properties.add_property(self.ref, kind, name, dtype, shape=shape, default=default)
+        return properties.add_property(self._ref, kind, name, dtype, shape=shape, default=default)
 
     def properties(self, kind: str) -> dict[str, Property]:
         """The properties declared on a kind, by name; see `hestore.properties.properties`."""
-        return properties.properties(self.ref, kind)
+        return properties.properties(self._ref, kind)
 
     def remove_property(self, kind: str, name: str) -> None:
         """Remove a property with all its values; see `hestore.properties.remove_property`."""
-        properties.remove_property(self.ref, kind, name)
+        properties.remove_property(self._ref, kind, name)
 
     def property_array(self, kind: str, name: str):
         """``(ids, values)`` of every live element of a kind; see `hestore.properties.property_array`."""
-        return properties.property_array(self.ref, kind, name)
+        return properties.property_array(self._ref, kind, name)
 
     def set_property_array(self, kind: str, name: str, ids, values) -> None:
         """Set many elements' values at once; see `hestore.properties.set_property_array`.
@@ -966,7 +951,7 @@ class Mesh:
         ``ids`` are ids, or handles of the kind.
         """
         cls = CLASSES.get(kind, Handle) if isinstance(kind, str) else Handle  # a bad kind is the callee's to refuse
-        properties.set_property_array(self.ref, kind, name, self._elements(ids, cls), values)
+        properties.set_property_array(self._ref, kind, name, self._elements(ids, cls), values)
 
     # -- graph views and bulk export -------------------------------------------
 
@@ -1016,7 +1001,7 @@ class Mesh:
         from hestore import graphs
 
         ids = None if vertices is None else self._vertex_ids(vertices, "vertices")
-        return graphs.to_networkx(self.ref, kind, attrs, ids, progress)
+        return graphs.to_networkx(self._ref, kind, attrs, ids, progress)
 
     def _vertex_ids(self, vertices: object, what: str) -> list[int]:
         """The ids of an iterable of `Vertex` handles of this mesh."""
@@ -1037,7 +1022,7 @@ class Mesh:
         >>> sorted(v.id for v in mesh.k_ring(a, 1)), sorted(v.id for v in mesh.k_ring(a, 5))
         ([0, 1], [0, 1, 2])
         """
-        return {wrap(Vertex, self, i) for i in traversal.k_ring(self.ref, self._own(v, Vertex, " for v"), k)}
+        return {wrap(Vertex, self, i) for i in traversal.k_ring(self._ref, self._own(v, Vertex, " for v"), k)}
 
     def shortest_path(self, a: Vertex, b: Vertex, weight: str | None = None) -> list[Vertex]:
         """A shortest path from ``a`` to ``b``: fewest edges, least total ``"length"``, or least total value of
@@ -1058,7 +1043,8 @@ class Mesh:
         >>> mesh.shortest_path(a, c, weight="cost")
         [Vertex(0), Vertex(1), Vertex(2)]
         """
-        path = traversal.shortest_path(self.ref, self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b"), weight)
+        a, b = self._own(a, Vertex, " for a"), self._own(b, Vertex, " for b")
+        path = traversal.shortest_path(self._ref, a, b, weight)
         return [wrap(Vertex, self, i) for i in path]
 
     def path_weight(self, path: Sequence[Vertex], weight: str | None = None) -> int | float:
@@ -1077,7 +1063,7 @@ class Mesh:
         ([Vertex(0), Vertex(2)], 1, 3.0, 2)
         """
         ids = [self._own(v, Vertex, " in the path") for v in values.check_items(path, "a path is a list of Vertex")]
-        return traversal.path_weight(self.ref, ids, weight)
+        return traversal.path_weight(self._ref, ids, weight)
 
     def dual(self, name: str) -> "Mesh":
         """Store the dual of this closed mesh as a new mesh called ``name``, and return it; see `hestore.bulk.dual`.
@@ -1098,7 +1084,7 @@ class Mesh:
         (Counts(vertices=8, halfedges=24, edges=12, polygons=6), {4: 6}, [])
         """
         name = values.check_name(name, "a mesh name")  # before the dual is computed
-        return self.store.import_arrays(name, *bulk.dual(self.ref)).mesh
+        return self.store.import_arrays(name, *bulk.dual(self._ref)).mesh
 
     def to_arrays(self) -> bulk.MeshArrays:
         """``(positions, polygons, vertex_ids)``; see `hestore.bulk.to_arrays`.
@@ -1110,7 +1096,7 @@ class Mesh:
         >>> mesh.to_arrays().polygons.tolist()
         [[0, 1, 2]]
         """
-        return bulk.to_arrays(self.ref)
+        return bulk.to_arrays(self._ref)
 
     def export(self, path, **options) -> None:
         """Write the mesh to an OFF, OBJ or PLY file (`hestore.bulk.export`), or STL, VTK, VTU through meshio.
@@ -1120,17 +1106,17 @@ class Mesh:
         """
         path = check_path(path)
         if path.lower().endswith(interop.MESHIO_EXTENSIONS):
-            interop.write_meshio_file(self.ref, path)
+            interop.write_meshio_file(self._ref, path)
             return
-        bulk.export(self.ref, path, **options)
+        bulk.export(self._ref, path, **options)
 
     def to_trimesh(self):
         """The mesh as a ``trimesh.Trimesh`` (needs trimesh); see `hestore.interop.to_trimesh`."""
-        return interop.to_trimesh(self.ref)
+        return interop.to_trimesh(self._ref)
 
     def to_meshio(self):
         """The mesh as a ``meshio.Mesh`` (needs meshio); see `hestore.interop.to_meshio`."""
-        return interop.to_meshio(self.ref)
+        return interop.to_meshio(self._ref)
 
     # -- pictures -----------------------------------------------------------
 
@@ -1147,11 +1133,11 @@ class Mesh:
         >>> [c.get_gid() for c in ax.collections]
         ['polygons', 'boundary_loops']
         """
-        return render.plot(self.ref, ax, **options)
+        return render.plot(self._ref, ax, **options)
 
     def render(self, path, **options) -> None:
         """Write a picture of the mesh to a PNG or SVG file (needs matplotlib); see `hestore.render.render`."""
-        render.render(self.ref, path, **options)
+        render.render(self._ref, path, **options)
 
     # -- validation ---------------------------------------------------------
 
@@ -1173,7 +1159,7 @@ class Mesh:
         >>> mesh.check()
         []
         """
-        return validation.check(self.ref, progress)
+        return validation.check(self._ref, progress)
 
     def validate(self) -> None:
         """Raise `InvariantViolationError` (carrying `check`'s list) unless the mesh is valid.

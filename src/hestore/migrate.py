@@ -32,7 +32,8 @@ from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 
-from hestore import drivers, schema, urls
+from hestore import schema, urls
+from hestore import _drivers as drivers
 from hestore.errors import SchemaVersionError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only

@@ -2,12 +2,12 @@
 
 This module owns the queries behind every name of SPEC §3's navigation table
 and behind the circulators. Its functions are free functions on a mesh's
-identity (`hestore.session.MeshRef`) and integer ids, returning ids and id records; `hestore.handles` wraps them into
+identity (`hestore._session.MeshRef`) and integer ids, returning ids and id records; `hestore.handles` wraps them into
 handles. Each answers with as few queries as it can: a half-edge's references
 together with its target in one query, a vertex's whole star or a polygon's
 whole ring in one query, ordered in Python afterwards. Every query is one of
-`hestore.queries.elements` and `hestore.queries.stars`, run through
-`hestore.session.Session.fetch`, so it sees the open transaction's own edits.
+`hestore._queries.elements` and `hestore._queries.stars`, run through
+`hestore._session.Session.fetch`, so it sees the open transaction's own edits.
 
 Rotation order is counter-clockwise, ``onext(h) = twin(prev(h))``, starting at
 the element's own ``halfedge``.
@@ -22,8 +22,8 @@ import math
 
 from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError, Violation
-from hestore.queries import Query, elements, stars
-from hestore.session import MeshRef
+from hestore._queries import Query, elements, stars
+from hestore._session import MeshRef
 
 __all__ = [
     "missing",

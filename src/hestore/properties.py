@@ -5,8 +5,8 @@ declaring and removing properties, reading and writing one element's value,
 reading and writing whole columns as numpy arrays, and moving vertices. They
 are free functions of a `hestore.Mesh`; `Mesh` methods and the handles'
 ``v["name"]`` delegate here. The value rules and the row layout are
-`hestore.values`'; every write is an edit of the mesh's unit of work
-(`hestore.session.Session.editing`), so it is atomic, transactional, undone
+`hestore._values`'; every write is an edit of the mesh's unit of work
+(`hestore._session.Session.editing`), so it is atomic, transactional, undone
 with its block, counted in the revision, and written by the same flush as
 every other change.
 
@@ -23,15 +23,16 @@ from typing import Any
 
 import numpy as np
 
-from hestore import schema, values
+from hestore import schema
+from hestore import _values as values
 from hestore.arrays import Index
-from hestore.columns import request
+from hestore._columns import request
 from hestore.errors import ElementNotFoundError, InvalidInputError, PropertyNotFoundError, shown
-from hestore.queries import catalogue as catalogue_q
-from hestore.queries import values as value_rows
-from hestore.unitofwork import UNSET, BulkValues
-from hestore.values import KINDS, Property
-from hestore.session import MeshRef
+from hestore._queries import catalogue as catalogue_q
+from hestore._queries import values as value_rows
+from hestore._unitofwork import UNSET, BulkValues
+from hestore._values import KINDS, Property
+from hestore._session import MeshRef
 
 __all__ = [
     "add_property",
@@ -81,8 +82,8 @@ def add_property(
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     kind : {"vertex", "halfedge", "edge", "polygon"}
         ``"halfedge"`` properties are per corner: a corner's value lives on
         the half-edge of the polygon whose origin is that corner.
@@ -228,7 +229,7 @@ def set_value(ref: MeshRef, kind: str, i: int, name: str, new: Any) -> None:
 
 
 def catalogue_in(snap) -> dict[tuple[str, str], Property]:
-    """Every property of a mesh by ``(kind, name)``, as a `hestore.session.Snapshot` of it sees them."""
+    """Every property of a mesh by ``(kind, name)``, as a `hestore._session.Snapshot` of it sees them."""
     found = (values.property_of(*row) for row in snap.rows(catalogue_q.properties_of))
     return {(prop.kind, prop.name): prop for prop in found}
 
@@ -344,8 +345,8 @@ def set_property_array(ref: MeshRef, kind: str, name: str, ids: object, new: obj
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     kind, name
         The property.
     ids : array_like of int

@@ -34,13 +34,14 @@ drawn, never by ``import hestore``.
 
 Examples
 --------
+>>> from hestore._session import identity
 >>> import matplotlib
 >>> matplotlib.use("Agg")
 >>> import hestore
 >>> store = hestore.open("sqlite://")
 >>> square = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
 >>> mesh = store.import_arrays("square", square, [[0, 1, 2], [0, 2, 3]]).mesh
->>> ax = plot(mesh.ref)
+>>> ax = plot(identity(mesh))
 >>> sorted(c.get_gid() for c in ax.collections)
 ['boundary_loops', 'polygons']
 >>> len(ax.collections[0].get_paths())
@@ -59,13 +60,13 @@ import numpy as np
 
 from hestore import schema, summary, validation
 from hestore.arrays import Index, dense, polygon_halfedges, positions as position_array, restricted_cycles
-from hestore.columns import position_request, request
+from hestore._columns import position_request, request
 from hestore.errors import InvalidInputError, Violation, require, shown
 from hestore.io import file_errors
 from hestore.progress import check_progress
 from hestore.urls import check_path
-from hestore.values import check_choice, check_flag, check_integer, check_items, check_real
-from hestore.session import MeshRef
+from hestore._values import check_choice, check_flag, check_integer, check_items, check_real
+from hestore._session import MeshRef
 
 __all__ = [
     "VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "MAX_SIDE", "DPI", "LABEL_VERTICES", "LAYERS", "plot",
@@ -265,8 +266,8 @@ def plot(
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh, or a view of a past revision (`Mesh.at`): its identity, `Mesh.ref`.
+    ref : hestore._session.MeshRef
+        The mesh, or a view of a past revision (`Mesh.at`): its identity (`hestore._session.identity`).
     ax : matplotlib.axes.Axes, optional
         Where to draw; a new figure's Axes (through ``pyplot``) when None.
     view : str or (float, float), optional
@@ -307,13 +308,14 @@ def plot(
     --------
     A triangle with a wire edge hanging off a corner:
 
+    >>> from hestore._session import identity
     >>> import matplotlib
     >>> matplotlib.use("Agg")
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
     >>> _ = mesh.add_edge(mesh.vertex(1), mesh.add_vertex((2, 0, 0)))
-    >>> ax = plot(mesh.ref, labels=True)
+    >>> ax = plot(identity(mesh), labels=True)
     >>> sorted(c.get_gid() for c in ax.collections)
     ['boundary_loops', 'polygons', 'wire_edges']
     >>> sorted(t.get_text() for t in ax.texts if t.get_gid() == "labels")
@@ -704,8 +706,8 @@ def render(
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh, or a view of a past revision (`Mesh.at`): its identity, `Mesh.ref`.
+    ref : hestore._session.MeshRef
+        The mesh, or a view of a past revision (`Mesh.at`): its identity (`hestore._session.identity`).
     path : str or os.PathLike
         Ends in ``.png`` or ``.svg``; its folder must exist.
     size : (int, int)
@@ -729,14 +731,15 @@ def render(
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore, os, tempfile
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.import_arrays("t", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh
     >>> path = os.path.join(tempfile.mkdtemp(), "t.png")
-    >>> render(mesh.ref, path, size=(200, 150))
+    >>> render(identity(mesh), path, size=(200, 150))
     >>> open(path, "rb").read(8) == b"\\x89PNG\\r\\n\\x1a\\n"
     True
-    >>> render(mesh.ref, path[:-4] + ".jpg")
+    >>> render(identity(mesh), path[:-4] + ".jpg")
     Traceback (most recent call last):
     ...
     hestore.errors.InvalidInputError: cannot render to '...t.jpg': the file name must end in .png or .svg

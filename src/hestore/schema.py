@@ -195,7 +195,7 @@ KIND_OF_TABLE = MappingProxyType({kind.table.name: kind.name for kind in KINDS.v
 # Properties (SPEC §3.2): a catalogue, and the set values in one table per
 # SQL type. A value row holds up to four components of one element's value
 # (``part`` numbers the rows of a longer vector); elements without a row
-# have the property's default. See `hestore.values` for the layout.
+# have the property's default. See `hestore._values` for the layout.
 
 properties = sa.Table(
     "properties",

@@ -3,9 +3,9 @@
 This module owns the mesh catalogue — creating, finding, listing, renaming,
 copying and deleting meshes by name, and storing imports (it decides the
 name, creates the mesh and hands `hestore.bulk` the mesh to fill) — and
-`open`, the entry point. Its SQL is `hestore.queries.catalogue`'s. Everything that
+`open`, the entry point. Its SQL is `hestore._queries.catalogue`'s. Everything that
 touches the connection (transactions, locks, units of work, flushing,
-threads, error translation) is the `hestore.session.Session` the store
+threads, error translation) is the `hestore._session.Session` the store
 holds as `Store.session`; the store only says what to do in each scope.
 
 A store belongs to the thread that opened it: open one per thread or process.
@@ -18,13 +18,14 @@ import math
 from contextlib import contextmanager
 from typing import Iterator
 
-from hestore import bulk, interop, schema, urls, values
+from hestore import bulk, interop, schema, urls
+from hestore import _values as values
 from hestore import io as mesh_io
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, shown
-from hestore.journal import created_changes
+from hestore._journal import created_changes
 from hestore.mesh import Mesh
-from hestore.queries import catalogue
-from hestore.session import Session
+from hestore._queries import catalogue
+from hestore._session import Session, identity
 
 __all__ = ["open", "Store", "DEFAULT_URL"]
 
@@ -90,7 +91,7 @@ class Store:
         The database.
     busy_timeout : float
         Seconds to wait for another writer's lock.
-    session : hestore.session.Session
+    session : hestore._session.Session
         The connection, transactions and units of work: the door every
         module of hestore reads and writes through.
     """
@@ -258,7 +259,7 @@ class Store:
         []
         """
         mesh = self.mesh(name)
-        with self.session.editing(mesh.ref) as uow:
+        with self.session.editing(identity(mesh)) as uow:
             uow.drop()
 
     def rename_mesh(self, name: str, new_name: str) -> Mesh:
@@ -289,9 +290,9 @@ class Store:
         if new_name == mesh.name:
             return mesh
         with self.session.scope() as db:
-            self.session.lock(mesh.ref)
+            self.session.lock(identity(mesh))
             catalogue.rename(db, mesh.id, new_name)
-            self.session.renamed(mesh.ref, new_name)
+            self.session.renamed(identity(mesh), new_name)
         return mesh
 
     def copy_mesh(self, name: str, new_name: str, revision: int | None = None) -> Mesh:
@@ -334,10 +335,10 @@ class Store:
             revision = values.check_revision(revision)
         with self.session.scope() as db:
             # Locked: the tables are read by several statements, and must not change between them.
-            self.session.lock(source.ref)
+            self.session.lock(identity(source))
             row = catalogue.row(db, source.id)
             at = row.revision if revision is None else revision
-            self.session.view(source.ref, at)  # checks that the revision is kept
+            self.session.view(identity(source), at)  # checks that the revision is kept
             copy = self.create_mesh(
                 new_name, allow_loops=row.allow_loops, allow_multi_edges=row.allow_multi_edges, history=row.history
             )
@@ -513,7 +514,7 @@ class Store:
                 name, allow_loops=options.allow_loops, allow_multi_edges=options.allow_multi_edges,
                 history=options.history,
             )
-            bulk.write(mesh.ref, built, options.progress)
+            bulk.write(identity(mesh), built, options.progress)
         if outer:
             # Fresh statistics, so that the planner knows how large the tables just became.
             session.analyze(bulk.WRITTEN)

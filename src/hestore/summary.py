@@ -47,9 +47,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from hestore.arrays import Index, component_roots, cycle_positions, dense, groups, restricted_cycles
-from hestore.columns import request, sides_request
+from hestore._columns import request, sides_request
 from hestore.progress import check_progress
-from hestore.session import MeshRef
+from hestore._session import MeshRef
 
 __all__ = ["Stats", "stats", "boundary_loops", "components", "pinched_vertices", "fan_counts"]
 
@@ -287,11 +287,12 @@ def pinched_vertices(ref: MeshRef) -> list[int]:
     --------
     Two triangles meeting only at vertex 0 (a "bowtie"):
 
+    >>> from hestore._session import identity
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> xyz = [(0, 0, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 0), (1, -1, 0)]
     >>> mesh = store.import_arrays("bowtie", xyz, [[0, 1, 2], [0, 3, 4]]).mesh
-    >>> pinched_vertices(mesh.ref)
+    >>> pinched_vertices(identity(mesh))
     [0]
     """
     t = _read(ref, sides=True, links=True)
@@ -309,8 +310,8 @@ def stats(ref: MeshRef, progress: Callable[[str, int, int], object] | None = Non
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     progress : callable, optional
         ``progress(stage, done, total)`` at the start and end of each stage,
         ``"read"`` then ``"stats"`` (a `hestore.progress.ProgressBar`, say).
@@ -411,8 +412,8 @@ def boundary_loops(ref: MeshRef) -> list[list[int]]:
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
 
     Returns
     -------
@@ -461,8 +462,8 @@ def components(ref: MeshRef, progress: Callable[[str, int, int], object] | None 
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     progress : callable, optional
         ``progress(stage, done, total)`` at the start and end of ``"read"`` and ``"label"``.
 

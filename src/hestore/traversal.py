@@ -14,15 +14,15 @@ How they read: a search expands a whole batch of vertices with one
 statement — the outgoing half-edges of every vertex of the batch, each with
 its target (its twin's origin), and for a weighted search the target's
 position or the edge's value of the property — an ``IN`` list compiled per
-power-of-two size (`hestore.statements.in_list_bucket`), one of the stars of
-`hestore.queries.stars`, run through `hestore.session.Session.fetch`. So a
+power-of-two size (`hestore._statements.in_list_bucket`), one of the stars of
+`hestore._queries.stars`, run through `hestore._session.Session.fetch`. So a
 breadth-first search costs one query per level, and the reads see an open
 block's own edits and, on a view of the past (`hestore.Mesh.at`), that
 revision. The twin (and its origin's vertex row, and the edge's row) is
 outer-joined on its whole key: a view rewrites such a join into two indexed
-joins (`hestore.journal.as_of`), where an inner join would make it read the
+joins (`hestore._journal.as_of`), where an inner join would make it read the
 whole table. A search's queries run inside one read snapshot
-(`hestore.session.Session.consistent`), so it never mixes two committed
+(`hestore._session.Session.consistent`), so it never mixes two committed
 states.
 
 The graph they search is the multigraph of `hestore.graphs` (``"multigraph"``):
@@ -39,7 +39,8 @@ import heapq
 import math
 from typing import Sequence
 
-from hestore import properties, values
+from hestore import properties
+from hestore import _values as values
 from hestore.errors import (
     InvalidInputError,
     InvariantViolationError,
@@ -49,11 +50,11 @@ from hestore.errors import (
     shown,
 )
 from hestore.navigation import exists, missing
-from hestore.queries import Query, elements, stars
-from hestore.queries import values as value_rows
-from hestore.statements import in_chunks, padded
-from hestore.values import Property, check_integer
-from hestore.session import MeshRef
+from hestore._queries import Query, elements, stars
+from hestore._queries import values as value_rows
+from hestore._statements import in_chunks, padded
+from hestore._values import Property, check_integer
+from hestore._session import MeshRef
 
 __all__ = [
     "KINDS", "LENGTH", "NUMERIC", "k_ring", "shortest_path", "path_weight", "vertex_rows", "halfedges_among",
@@ -87,7 +88,7 @@ def _consistent(ref: MeshRef):
     """Run the block's reads in one read snapshot of the session's connection (an open block's own state).
 
     A search's queries then see one committed state even while other
-    processes commit. Cheaper than `hestore.session.Session.snapshot`, which
+    processes commit. Cheaper than `hestore._session.Session.snapshot`, which
     also reads the revision: a cold query on PostgreSQL pays about a
     millisecond per round trip it makes.
     """
@@ -179,8 +180,8 @@ def k_ring(ref: MeshRef, v: int, k: int) -> set[int]:
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     v : int
         The id of the vertex at the centre.
     k : int
@@ -204,12 +205,13 @@ def k_ring(ref: MeshRef, v: int, k: int) -> set[int]:
     --------
     A strip of four triangles, 0-2-4 along the bottom and 1-3-5 along the top:
 
+    >>> from hestore._session import identity
     >>> import hestore
     >>> xyz = [(i // 2, i % 2, 0) for i in range(6)]
     >>> mesh = hestore.open("sqlite://").import_arrays("strip", xyz, [[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]]).mesh
-    >>> sorted(k_ring(mesh.ref, 0, 1)), sorted(k_ring(mesh.ref, 0, 2))
+    >>> sorted(k_ring(identity(mesh), 0, 1)), sorted(k_ring(identity(mesh), 0, 2))
     ([0, 1, 2], [0, 1, 2, 3, 4])
-    >>> k_ring(mesh.ref, 5, 0)
+    >>> k_ring(identity(mesh), 5, 0)
     {5}
     """
     k = _order(k)
@@ -427,8 +429,8 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     a, b : int
         The ids of the first and the last vertex.
     weight : None, "length" or str
@@ -464,6 +466,7 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
     its hypotenuse (15), cut into three edges of 5; the edge ``b``–``c``
     costs 5, every other one the default 1:
 
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> xyz = [(0, 0, 0), (9, 0, 0), (9, 12, 0), (6, 8, 0), (3, 4, 0)]
@@ -471,14 +474,14 @@ def shortest_path(ref: MeshRef, a: int, b: int, weight: str | None = None) -> li
     >>> pentagon = mesh.add_polygon([a, b, c, q, p])
     >>> _ = mesh.add_property("edge", "cost", "int64", default=1)
     >>> mesh.find_halfedge(b, c).edge["cost"] = 5
-    >>> shortest_path(mesh.ref, a.id, c.id)  # the fewest edges
+    >>> shortest_path(identity(mesh), a.id, c.id)  # the fewest edges
     [0, 1, 2]
-    >>> shortest_path(mesh.ref, a.id, c.id, "length")  # the shortest
+    >>> shortest_path(identity(mesh), a.id, c.id, "length")  # the shortest
     [0, 4, 3, 2]
-    >>> shortest_path(mesh.ref, a.id, c.id, "cost")  # the cheapest: 3, not 6
+    >>> shortest_path(identity(mesh), a.id, c.id, "cost")  # the cheapest: 3, not 6
     [0, 4, 3, 2]
     >>> lone = mesh.add_vertex()
-    >>> shortest_path(mesh.ref, a.id, lone.id)
+    >>> shortest_path(identity(mesh), a.id, lone.id)
     Traceback (most recent call last):
     ...
     hestore.errors.NoPathError: no path from vertex 0 to vertex 5 in mesh 'm': they are in different components
@@ -597,8 +600,8 @@ def path_weight(ref: MeshRef, path: list[int], weight: str | None = None) -> int
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     path : list of int
         Vertex ids, at least one; consecutive ones must be joined by an edge.
     weight : None, "length" or str
@@ -620,6 +623,7 @@ def path_weight(ref: MeshRef, path: list[int], weight: str | None = None) -> int
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> a, b, c = (mesh.add_vertex((x, 0, 0)) for x in (0, 3, 7))
@@ -627,7 +631,8 @@ def path_weight(ref: MeshRef, path: list[int], weight: str | None = None) -> int
     >>> _ = mesh.add_property("edge", "toll", "float64", default=2.5)
     >>> again["toll"] = 0.5
     >>> path = [a.id, b.id, c.id]
-    >>> path_weight(mesh.ref, path), path_weight(mesh.ref, path, "length"), path_weight(mesh.ref, path, "toll")
+    >>> ref = identity(mesh)
+    >>> path_weight(ref, path), path_weight(ref, path, "length"), path_weight(ref, path, "toll")
     (2, 7.0, 3.0)
     """
     weight = _weight_name(weight)

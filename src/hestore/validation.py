@@ -76,13 +76,13 @@ import numpy as np
 
 from hestore import schema
 from hestore.arrays import Index, TopologyArrays, first_per_group, restricted_cycles
-from hestore.columns import Connection, read_columns, request
+from hestore._columns import Connection, read_columns, request
 from hestore.errors import InvalidInputError, Violation
 from hestore.progress import check_progress
-from hestore.queries import catalogue as catalogue_q
-from hestore.queries import history as history_q
-from hestore.queries import values as value_rows
-from hestore.session import MeshRef
+from hestore._queries import catalogue as catalogue_q
+from hestore._queries import history as history_q
+from hestore._queries import values as value_rows
+from hestore._session import MeshRef
 
 __all__ = [
     "CODES",
@@ -143,7 +143,7 @@ _KIND_RANK = {kind: i for i, kind in enumerate(KINDS)}
 # Loading
 
 
-#: The `hestore.columns.read_columns` requests of `TopologyArrays`' columns, table by table (NULL -> -1).
+#: The `hestore._columns.read_columns` requests of `TopologyArrays`' columns, table by table (NULL -> -1).
 _REQUESTS = [
     request(schema.KINDS[kind].table.name, *(name.split("_", 1)[1] for name in names[1:]))
     for kind, names in TopologyArrays.GROUPS
@@ -794,8 +794,8 @@ def check(ref: MeshRef, progress: Callable[[str, int, int], object] | None = Non
 
     Parameters
     ----------
-    ref : hestore.session.MeshRef
-        The mesh (its identity: the facade passes `Mesh.ref`).
+    ref : hestore._session.MeshRef
+        The mesh (its identity: the facade passes its own, `hestore._session.identity`).
     progress : callable, optional
         ``progress(stage, done, total)``: ``"read"`` (0 then 1 of 1), then
         ``"check"`` (topology, properties, history: 0 to 3 of 3).
@@ -812,10 +812,11 @@ def check(ref: MeshRef, progress: Callable[[str, int, int], object] | None = Non
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.create_mesh("m")
-    >>> check(mesh.ref)
+    >>> check(identity(mesh))
     []
     >>> store.close()
     """

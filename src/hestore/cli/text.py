@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 
 from hestore.history import KINDS as ELEMENT_KINDS
-from hestore.values import KINDS as PROPERTY_KINDS
+from hestore._values import KINDS as PROPERTY_KINDS
 
 __all__ = [
     "INFO_LABELS", "TOP_COMPONENTS", "error", "count", "number", "changes", "revision_line", "diff_lines", "info",

@@ -9,10 +9,10 @@ and the translation of every driver error into a typed
 `hestore.errors.StoreError`. Every other module reads and writes through a
 `Session` (`Store.session`), through the small interface below, and never
 through its private members: it hands the session a registered query of
-`hestore.queries` and its values, and every statement runs on the
-session's one cursor (`hestore.queries.Executor`), which `traced` watches.
+`hestore._queries` and its values, and every statement runs on the
+session's one cursor (`hestore._queries.Executor`), which `traced` watches.
 What history means and does — its revisions, the rows between two,
-restores, prunes — is `hestore.timeline`'s, run inside these scopes.
+restores, prunes — is `hestore._timeline`'s, run inside these scopes.
 
 A session's connection runs its driver in autocommit mode and hestore issues
 ``BEGIN``/``COMMIT``/``SAVEPOINT`` itself, which gives exactly SPEC §4 on
@@ -33,8 +33,8 @@ both databases:
   so that a lock timeout leaves the block usable), so writers to one mesh
   are serialized and writers to different meshes are not; a lock not granted
   within ``busy_timeout`` is `StoreBusyError`;
-* edits collect in one `hestore.unitofwork.UnitOfWork` per mesh and are
-  flushed — handed to `hestore.persistence` as one `ChangeSet` each —
+* edits collect in one `hestore._unitofwork.UnitOfWork` per mesh and are
+  flushed — handed to `hestore._persistence` as one `ChangeSet` each —
   before any read, before a savepoint and at commit. The mesh's revision
   grows by one in the first flush of a transaction that changes it;
 * `dry_run` runs an operation and throws it away without the writer lock:
@@ -49,7 +49,7 @@ transaction that is rolled back dies with it: its id may be handed out again
 A session belongs to the thread that opened it. Any use from another thread
 raises `WrongThreadError` before the connection is touched.
 
-Private reach: none. `hestore.columns`, `hestore.persistence` and the
+Private reach: none. `hestore._columns`, `hestore._persistence` and the
 executor are handed the session's DBAPI cursor; nothing outside the
 session layer holds it.
 """
@@ -63,10 +63,11 @@ from typing import Any, Callable, Iterator
 
 import sqlalchemy as sa
 
-from hestore import drivers, migrate, urls
-from hestore.columns import read_columns, read_snapshot
-from hestore.journal import request_as_of
-from hestore.drivers import is_driver_error
+from hestore import migrate, urls
+from hestore import _drivers as drivers
+from hestore._columns import read_columns, read_snapshot
+from hestore._journal import request_as_of
+from hestore._drivers import is_driver_error
 from hestore.errors import (
     HestoreError,
     InvalidInputError,
@@ -77,12 +78,13 @@ from hestore.errors import (
     StoreError,
     WrongThreadError,
 )
-from hestore.persistence import Persistence
-from hestore.queries import Executor, Query
-from hestore.queries import history as history_q
-from hestore.unitofwork import UnitOfWork
+from hestore._persistence import Persistence
+from hestore._queries import Executor, Query
+from hestore._queries import history as history_q
+from hestore._unitofwork import UnitOfWork
 
-__all__ = ["Session", "MeshRef", "Snapshot"]
+__all__ = ["Session", "MeshRef", "Snapshot", "identity"]
+
 
 class MeshRef:
     """A mesh's identity for one session: what every algorithm below the facade is handed.
@@ -122,6 +124,27 @@ class MeshRef:
         return f"MeshRef({self.id}, {self.name!r}{at}{'' if self.alive else ', dead'})"
 
 
+def identity(mesh) -> MeshRef:
+    """The identity a `hestore.Mesh` (or a view of its past) carries: what the layers below the facade are handed.
+
+    The facade keeps it private (``Mesh._ref``, with its session): it is no
+    part of the public API. This function is the one place that reads it, for
+    the modules below the facade that hold a mesh — handles, the store — and
+    for examples and tests of the algorithms, which take an identity.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> from hestore._session import identity
+    >>> mesh = hestore.open("sqlite://").create_mesh("m")
+    >>> identity(mesh)
+    MeshRef(1, 'm')
+    >>> identity(mesh).session is identity(mesh.at(0)).session
+    True
+    """
+    return mesh._ref
+
+
 class Snapshot:
     """Reads of one mesh that see one consistent state: what `Session.snapshot` yields.
 
@@ -146,7 +169,7 @@ class Snapshot:
         self.isolated = isolated
 
     def columns(self, requests) -> list:
-        """Columns of several tables of the mesh: `hestore.columns.read_columns`."""
+        """Columns of several tables of the mesh: `hestore._columns.read_columns`."""
         if self._as_of is not None:
             requests = [request_as_of(request, self._as_of) for request in requests]
         return read_columns(self._connection, self._mesh_id, requests, cursor=self._db.cursor())
@@ -557,7 +580,7 @@ class Session:
     def scope(self):
         """One atomic step of several statements: its own transaction outside a block, a savepoint inside.
 
-        Yields the executor to run them with (`hestore.queries.Executor`, on
+        Yields the executor to run them with (`hestore._queries.Executor`, on
         the session's cursor); pending edits are written before it starts and
         when it ends.
         """
@@ -692,15 +715,15 @@ class Session:
     def fetch(self, ref: MeshRef, query: Query, values: dict) -> list[tuple]:
         """Rows of a registered query about one mesh, seeing the open transaction's edits.
 
-        For a view, the query as of its revision (`hestore.queries.Executor.as_of`),
+        For a view, the query as of its revision (`hestore._queries.Executor.as_of`),
         reading nothing unless that revision is kept.
 
         Parameters
         ----------
         ref : MeshRef
             The mesh; bound as ``:m``.
-        query : hestore.queries.Query
-            The statement (`hestore.queries.elements`, `hestore.queries.stars`, …).
+        query : hestore._queries.Query
+            The statement (`hestore._queries.elements`, `hestore._queries.stars`, …).
         values : dict
             The other parameters (the dict is reused: ``m`` is set in it).
         """
@@ -826,7 +849,7 @@ class Session:
         return row
 
     def kept(self, ref: MeshRef, revision: int, db: Executor | None = None) -> int:
-        """Check that ``revision`` of the mesh can be read (`hestore.queries.history.kept`); return the current one.
+        """Check that ``revision`` of the mesh can be read (`hestore._queries.history.kept`); return the current one.
 
         Run it in a scope (`querying`, `scope`).
         """

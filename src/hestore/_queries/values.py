@@ -1,8 +1,8 @@
 """The statements of property values: one element's, a batch's, and a whole property's columns.
 
 The rows' layout (``property, id, part, v0 …``, one table per dtype) and
-what they mean are `hestore.values`'; `hestore.properties` reads one value
-(`value`) and whole properties (`texts`, `request`), `hestore.persistence`
+what they mean are `hestore._values`'; `hestore.properties` reads one value
+(`value`) and whole properties (`texts`, `request`), `hestore._persistence`
 the values of the elements a unit of work loads (`of_elements`), and
 `hestore.traversal` the values that weigh a search's edges (`of_edges`), and `hestore.validation`
 which element and property every value belongs to (`owners`).
@@ -13,8 +13,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.queries import query
-from hestore.statements import in_keys
+from hestore._queries import query
+from hestore._statements import in_keys
 
 __all__ = ["value", "of_elements", "of_edges", "texts", "request", "owners"]
 
@@ -69,7 +69,7 @@ def texts(table: sa.Table):
 
 
 def request(table: sa.Table, prop: int, width: int, several: bool, floats: str | None) -> tuple:
-    """The `hestore.columns.read_columns` request for the numbers of property ``prop``: only what is needed.
+    """The `hestore._columns.read_columns` request for the numbers of property ``prop``: only what is needed.
 
     Columns ``id`` (``part`` if a value has ``several`` rows) and ``v0 …
     v{width-1}``, NULL read as 0 — a float's NaN is stored as NULL:
@@ -94,7 +94,7 @@ def request(table: sa.Table, prop: int, width: int, several: bool, floats: str |
 
 
 def owners() -> list:
-    """The `hestore.columns.read_columns` requests of ``(id, property)`` of every value, one per value table.
+    """The `hestore._columns.read_columns` requests of ``(id, property)`` of every value, one per value table.
 
     One row per value (its part 0): what `hestore.validation` checks
     against the catalogue and the elements.

@@ -5,23 +5,23 @@ reads: the kept revisions (`revisions`, `oldest_kept`), the row versions
 that changed between two revisions (`versions`), making a new revision
 equal to an earlier one (`restore`, refused by `restorable` in a block that
 changed the mesh already) and forgetting old revisions (`prune`). Each is a
-free function on a mesh's identity (`hestore.session.MeshRef`) that runs
-the statements of `hestore.queries.history` inside the session's scopes —
+free function on a mesh's identity (`hestore._session.MeshRef`) that runs
+the statements of `hestore._queries.history` inside the session's scopes —
 `Session.scope` for a write, `Session.querying` or `Session.snapshot` for
 a read — and asks the session for what only it knows (the writer lock and
 the revision a transaction makes, whether the open block changed the mesh).
 
 The session keeps what a read of the past needs on every call: a view's
-identity (`hestore.session.Session.view`), the check that its revision is
-still kept, and the rewriting of its statements (`hestore.journal.as_of`).
-How history is written is `hestore.persistence`'s (every flush), what the
+identity (`hestore._session.Session.view`), the check that its revision is
+still kept, and the rewriting of its statements (`hestore._journal.as_of`).
+How history is written is `hestore._persistence`'s (every flush), what the
 rows mean is `hestore.history`'s (`Revision`, `Diff`, the undo stack),
 which is the caller of this module, with `hestore.store` (a copy checks its
 revision here).
 
 The name: it is the mesh's line of revisions — read along it, cut back to
 a point (`restore`), or shortened at its start (`prune`) — beside
-`hestore.journal`, the SQL of the rows it is made of.
+`hestore._journal`, the SQL of the rows it is made of.
 """
 
 from __future__ import annotations
@@ -30,10 +30,10 @@ from typing import Callable
 
 from hestore import schema
 from hestore.errors import InvalidInputError, RevisionNotFoundError
-from hestore.journal import COUNTERS
-from hestore.queries import Executor
-from hestore.queries import history as q
-from hestore.session import MeshRef
+from hestore._journal import COUNTERS
+from hestore._queries import Executor
+from hestore._queries import history as q
+from hestore._session import MeshRef
 
 __all__ = ["oldest_kept", "revisions", "versions", "restorable", "restore", "prune"]
 
@@ -47,10 +47,11 @@ def oldest_kept(ref: MeshRef) -> int:
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> _ = [mesh.add_vertex() for _ in range(3)]
-    >>> oldest_kept(mesh.ref), prune(mesh.ref, 2), oldest_kept(mesh.ref)
+    >>> oldest_kept(identity(mesh)), prune(identity(mesh), 2), oldest_kept(identity(mesh))
     (0, 2, 2)
     """
     with _reading(ref):
@@ -67,10 +68,11 @@ def revisions(ref: MeshRef, limit: int | None = None, *, newest_first: bool = Tr
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> _ = mesh.add_vertex()
-    >>> [(n, message, action) for n, _, message, _, action, _ in revisions(mesh.ref)]
+    >>> [(n, message, action) for n, _, message, _, action, _ in revisions(identity(mesh))]
     [(1, None, None)]
     """
     with _reading(ref) as db:
@@ -111,10 +113,11 @@ def versions(ref: MeshRef, a: int, b: int, *, check: bool = True) -> dict[str, t
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> _ = mesh.add_vertex((1, 2, 3))
-    >>> versions(mesh.ref, 0, 1)["vertices"]
+    >>> versions(identity(mesh), 0, 1)["vertices"]
     ([], [(0, None, 1.0, 2.0, 3.0)])
     """
     with ref.session.snapshot(ref, kept=(a, b) if check else ()) as snap:
@@ -139,11 +142,12 @@ def restorable(ref: MeshRef, action: str) -> None:
     Examples
     --------
     >>> import hestore
+    >>> from hestore._session import identity
     >>> store = hestore.open("sqlite://")
     >>> mesh = store.create_mesh("m")
     >>> with store.transaction():
     ...     _ = mesh.add_vertex()
-    ...     restorable(mesh.ref, "undo")
+    ...     restorable(identity(mesh), "undo")
     Traceback (most recent call last):
     ...
     hestore.errors.InvalidInputError: undo makes a revision of its own, but this block has already changed mesh 'm': \
@@ -161,7 +165,7 @@ call it outside the block, or before the block's other edits of the mesh
 def restore(ref: MeshRef, target: int, message: str, action: str, acted_on: int) -> int:
     """Commit a new revision of the mesh whose rows equal those at ``target``; return its number.
 
-    Set-based (`hestore.journal.restore_statements`), recorded in history
+    Set-based (`hestore._journal.restore_statements`), recorded in history
     like any edit: ids, positions and property values come back as they
     were, and the id counters do not move back, so no id is handed out
     twice. Its own transaction, or a savepoint of the open block, which
@@ -177,10 +181,11 @@ def restore(ref: MeshRef, target: int, message: str, action: str, acted_on: int)
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> _ = mesh.add_vertex()
-    >>> restore(mesh.ref, 0, "back to empty", "revert", 0), mesh.counts().vertices
+    >>> restore(identity(mesh), 0, "back to empty", "revert", 0), mesh.counts().vertices
     (2, 0)
     """
     restorable(ref, action)
@@ -221,10 +226,11 @@ def prune(ref: MeshRef, keep: int) -> int:
 
     Examples
     --------
+    >>> from hestore._session import identity
     >>> import hestore
     >>> mesh = hestore.open("sqlite://").create_mesh("m")
     >>> _ = [mesh.add_vertex() for _ in range(4)]
-    >>> prune(mesh.ref, 1), oldest_kept(mesh.ref)
+    >>> prune(identity(mesh), 1), oldest_kept(identity(mesh))
     (4, 4)
     """
     session = ref.session

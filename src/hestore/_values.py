@@ -18,7 +18,7 @@ The vocabulary of element properties (SPEC §3.2): what a `Property` is,
 which dtypes and shapes exist, how a value or an array is checked against a
 property (strictly: never coerced loosely), and how values are laid out as
 rows of `hestore.schema`'s value tables. It knows no database connection;
-`hestore.persistence` writes the rows it makes and `hestore.properties`
+`hestore._persistence` writes the rows it makes and `hestore.properties`
 reads them back through the session.
 
 The layout, one table per stored SQL type::

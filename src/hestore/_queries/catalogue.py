@@ -3,13 +3,13 @@
 This module owns every statement about the ``meshes`` table as a list of
 named meshes — finding one by name, listing them, creating, renaming, and
 the rows a copy takes from its source (`copy_rows`, which reads the source
-as of a revision with `hestore.journal.as_of`) together with the copy's
+as of a revision with `hestore._journal.as_of`) together with the copy's
 first revision record — and the reads of a mesh's catalogue of properties
 (`properties_of`, `properties_of_kind`, `property_named`), which the unit of
 work and `hestore.properties` share. `hestore.store` calls the functions
-with the executor of a `hestore.session.Session` scope, so each step is
+with the executor of a `hestore._session.Session` scope, so each step is
 atomic; the session's own rows of a mesh (its counters and lock, its
-revision) are `mesh_row` and `hestore.persistence`'s.
+revision) are `mesh_row` and `hestore._persistence`'s.
 
 A name taken between a check and an insert (another connection) is
 `MeshExistsError`, never the driver's integrity error.
@@ -22,12 +22,12 @@ from typing import NamedTuple
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.drivers import is_integrity_error
+from hestore._drivers import is_integrity_error
 from hestore.errors import MeshExistsError
-from hestore.journal import as_of
-from hestore.queries import Executor, query
-from hestore.queries import history
-from hestore.values import catalogue_columns
+from hestore._journal import as_of
+from hestore._queries import Executor, query
+from hestore._queries import history
+from hestore._values import catalogue_columns
 
 __all__ = [
     "Entry", "MeshRow", "names", "find", "row", "create", "rename", "copy_counters", "copy_rows", "add_revision",
@@ -199,7 +199,7 @@ def mesh_row(lock: bool):
 
 @query("catalogue.properties")
 def properties_of():
-    """Every property declared on mesh ``:m`` (`hestore.values.catalogue_columns`), in the order declared."""
+    """Every property declared on mesh ``:m`` (`hestore._values.catalogue_columns`), in the order declared."""
     p = schema.properties
     return sa.select(*catalogue_columns()).where(p.c.mesh_id == sa.bindparam("m")).order_by(p.c.id)
 

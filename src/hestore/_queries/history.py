@@ -1,10 +1,10 @@
 """The statements of history: a mesh's history row, its revisions, the rows changed between two, restores and prunes.
 
-The meaning is `hestore.timeline`'s (which runs them inside the session's
+The meaning is `hestore._timeline`'s (which runs them inside the session's
 scopes) and `hestore.history`'s; the rewriting of statements into reads of
-the past is `hestore.journal`'s, whose builders the families here compile.
+the past is `hestore._journal`'s, whose builders the families here compile.
 The session reads `mesh_history` to check that a view's revision is kept;
-`hestore.persistence` composes `revision_insert` into a flush's writes.
+`hestore._persistence` composes `revision_insert` into a flush's writes.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import sqlalchemy as sa
 
 from hestore import schema
 from hestore.errors import RevisionNotFoundError
-from hestore.journal import COUNTERS, changed_rows, restore_statements, restored, to_history
-from hestore.queries import query
+from hestore._journal import COUNTERS, changed_rows, restore_statements, restored, to_history
+from hestore._queries import query
 
 __all__ = [
     "mesh_history", "revisions", "counters_at", "counters", "changed", "restore", "restore_new", "set_revision",
@@ -87,7 +87,7 @@ def revisions(newest_first: bool, limited: bool):
 
 @query("history.counters_at")
 def counters_at():
-    """The id counters (`hestore.journal.COUNTERS`) when revision ``:n`` of mesh ``:m`` began."""
+    """The id counters (`hestore._journal.COUNTERS`) when revision ``:n`` of mesh ``:m`` began."""
     counters = (_R.c[n] for n in COUNTERS)
     return sa.select(*counters).where(_R.c.mesh_id == sa.bindparam("m"), _R.c.number == sa.bindparam("n"))
 
@@ -100,13 +100,13 @@ def counters():
 
 @query("history.changed", prepare=False)
 def changed(table: sa.Table, side: str):
-    """`hestore.journal.changed_rows` of ``table``: planned per call, the best plan depends on the revisions."""
+    """`hestore._journal.changed_rows` of ``table``: planned per call, the best plan depends on the revisions."""
     return changed_rows(table, side)
 
 
 @query("history.restore", prepare=False, cached=False)
 def restore(table: sa.Table, step: int, target: int, revision: int, since: dict):
-    """Step ``step`` of `hestore.journal.restore_statements` (copy old rows, delete, write back), for mesh ``:m``."""
+    """Step ``step`` of `hestore._journal.restore_statements` (copy old rows, delete, write back), for mesh ``:m``."""
     return restore_statements(table, target, revision, since)[step]
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.statements import Prepared
+from hestore._statements import Prepared
 
 __all__ = [
     "Connection", "read_columns", "read_snapshot", "write_columns", "uses_copy", "position_request", "request",

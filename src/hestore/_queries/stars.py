@@ -9,12 +9,12 @@ A vertex's star is written once (`out_of`, read by the half-edges'
   one statement (an ``IN`` list compiled per power-of-two size), with each
   half-edge's target, its target's position, or its edge's row, for the
   searches and induced views of `hestore.traversal`;
-- `load`: the rows a `hestore.unitofwork.UnitOfWork` loads in one
+- `load`: the rows a `hestore._unitofwork.UnitOfWork` loads in one
   ``UNION ALL`` — vertices with their stars and their half-edges' twins,
   half-edges, edges with both half-edges, polygons with their rings — for
-  `hestore.persistence`.
+  `hestore._persistence`.
 
-The twin is outer-joined on its whole key (`hestore.queries.elements.twin_of`).
+The twin is outer-joined on its whole key (`hestore._queries.elements.twin_of`).
 """
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ from typing import Any
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.queries import query
-from hestore.queries.elements import twin_of
-from hestore.statements import in_keys, indexed_by
-from hestore.unitofwork import HE_COLUMNS, K_EDGE, K_HALFEDGE, K_POLYGON, K_VERTEX
+from hestore._queries import query
+from hestore._queries.elements import twin_of
+from hestore._statements import in_keys, indexed_by
+from hestore._unitofwork import HE_COLUMNS, K_EDGE, K_HALFEDGE, K_POLYGON, K_VERTEX
 
 __all__ = ["out_of", "indexed", "of_vertex", "batch", "placed", "among", "load"]
 
@@ -41,7 +41,7 @@ def out_of(vertices: Any, h: sa.FromClause = _H) -> Any:
 
 
 def indexed(stmt: Any, h: sa.FromClause = _H) -> Any:
-    """``stmt`` reading the half-edges ``h`` by their origin's index (see `hestore.statements.indexed_by`)."""
+    """``stmt`` reading the half-edges ``h`` by their origin's index (see `hestore._statements.indexed_by`)."""
     return indexed_by(stmt, h, "ix_halfedges_origin")
 
 
@@ -53,7 +53,7 @@ def of_vertex(targets: bool):
     One row with NULLs for an isolated vertex, none for a missing one.
     """
     v = schema.vertices
-    # Joined on the parameters, not on v's columns: a view (`hestore.journal.as_of`) can then narrow
+    # Joined on the parameters, not on v's columns: a view (`hestore._journal.as_of`) can then narrow
     # the half-edges before the join.
     j = v.outerjoin(_H, out_of(sa.bindparam("i")))
     extra = [_H.c.edge, _H.c.polygon]
@@ -97,7 +97,7 @@ def among(size: int):
 
 @query("stars.load")
 def load(sizes: tuple):
-    """The ``UNION ALL`` behind `hestore.persistence.Persistence.load` for its parts' sizes.
+    """The ``UNION ALL`` behind `hestore._persistence.Persistence.load` for its parts' sizes.
 
     ``sizes`` is ``((part, size), …)``; each part's ids are ``:{part}0 …``.
     Each row is ``(kind, id, …)``: `K_VERTEX`, `K_EDGE` and `K_POLYGON`

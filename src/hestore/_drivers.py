@@ -5,13 +5,13 @@ the DBAPI drivers below them (sqlite3, psycopg 3): `make_engine` (SQLite's
 WAL, busy timeout and page cache; PostgreSQL's lock timeout) and the
 translation of every driver exception into a typed
 `~hestore.errors.StoreError` (`translate`, `guard`), so that no driver
-exception leaves a public call. `hestore.session` uses both for the store's
+exception leaves a public call. `hestore._session` uses both for the store's
 connections, `hestore.migrate` for the ``hestore db`` commands.
 
 Examples
 --------
 >>> import sqlalchemy as sa
->>> from hestore.drivers import guard
+>>> from hestore._drivers import guard
 >>> engine = sa.create_engine("sqlite://")
 >>> with engine.connect() as conn, guard("could not read", "sqlite://"):
 ...     conn.execute(sa.text("SELECT * FROM nowhere"))

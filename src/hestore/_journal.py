@@ -2,14 +2,14 @@
 
 This module owns the statements over the history tables of
 `hestore.schema` (SPEC §4.1) that are not part of writing a flush (those are
-`hestore.persistence`'s): turning any read statement into the same read of
+`hestore._persistence`'s): turning any read statement into the same read of
 an earlier revision (`as_of`), listing kept revisions, fetching the row
 versions that changed between two revisions, and the set-based statements
 that make the current rows equal to an earlier revision's
 (`restore_statements`). Its builders are compiled as the queries of
-`hestore.queries.history` and as a view's reads (`hestore.queries.Executor.as_of`);
-`hestore.persistence` records history with `to_history`, and
-`hestore.session` reads a view's columns with `request_as_of`.
+`hestore._queries.history` and as a view's reads (`hestore._queries.Executor.as_of`);
+`hestore._persistence` records history with `to_history`, and
+`hestore._session` reads a view's columns with `request_as_of`.
 
 A row version belongs to revision ``r`` when ``rev <= r < rev_to``: current
 rows have no ``rev_to``, history rows have one, and a history row with
@@ -29,7 +29,7 @@ from sqlalchemy.sql import operators, visitors
 from sqlalchemy.sql.visitors import replacement_traverse
 
 from hestore import schema
-from hestore.statements import indexed_by
+from hestore._statements import indexed_by
 
 __all__ = [
     "to_history", "as_of", "as_of_kept", "request_as_of", "touched", "created", "rows_at", "changed_rows",
@@ -328,7 +328,7 @@ def _single_source(term: Any) -> Any:
 
 
 def request_as_of(request: tuple, revision: int) -> tuple:
-    """A `hestore.columns.read_columns` request reading its table as it was at ``revision``.
+    """A `hestore._columns.read_columns` request reading its table as it was at ``revision``.
 
     Examples
     --------

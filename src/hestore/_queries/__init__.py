@@ -1,8 +1,8 @@
 """hestore's SQL statements: one registry of named queries, and the one path every statement runs by.
 
 Every statement hestore sends is built here or in the storage modules
-below the session (`hestore.persistence`'s writes, `hestore.journal`'s
-history rewrites, `hestore.columns`' whole-column reads and the requests
+below the session (`hestore._persistence`'s writes, `hestore._journal`'s
+history rewrites, `hestore._columns`' whole-column reads and the requests
 that name them), never by an algorithm. A statement is a `Query`: a name, registered once, and a function
 that builds it from `hestore.schema`'s tables with SQLAlchemy Core and named
 ``bindparam`` placeholders. A family of statements — an ``IN`` list per
@@ -11,23 +11,23 @@ size, one statement per table — is one query with variants:
 
 The modules, by topic:
 
-- `hestore.queries.elements`: one element's rows (a vertex, a half-edge and
+- `hestore._queries.elements`: one element's rows (a vertex, a half-edge and
   its target, an edge, a polygon's ring, ids, counts);
-- `hestore.queries.stars`: the outgoing half-edges of vertices — one
+- `hestore._queries.stars`: the outgoing half-edges of vertices — one
   vertex's star, a batch's, and the unit of work's loads — written once;
-- `hestore.queries.catalogue`: the meshes by name (find, list, create,
+- `hestore._queries.catalogue`: the meshes by name (find, list, create,
   rename, copy) and each mesh's catalogue of properties;
-- `hestore.queries.values`: property values, one element's or a batch's;
-- `hestore.queries.history`: revisions, a mesh's history row, the rows
+- `hestore._queries.values`: property values, one element's or a batch's;
+- `hestore._queries.history`: revisions, a mesh's history row, the rows
   changed between two revisions, restores and prunes, and the checks of
   the kept history against the current state.
 
 `Executor` runs them: each compiled once for the session's dialect
-(`hestore.statements.Prepared`) and sent on the session's DBAPI cursor —
+(`hestore._statements.Prepared`) and sent on the session's DBAPI cursor —
 the one path of every statement, so that
-`hestore.session.Session.traced` sees them all. A read of a view of the
-past is the same query rewritten by `hestore.journal.as_of`, compiled once
-more. It is used by `hestore.session` and `hestore.persistence`, which own
+`hestore._session.Session.traced` sees them all. A read of a view of the
+past is the same query rewritten by `hestore._journal.as_of`, compiled once
+more. It is used by `hestore._session` and `hestore._persistence`, which own
 the cursor; everything above the session hands the session a query and
 its values.
 """
@@ -38,8 +38,8 @@ from typing import Any, Callable, Iterable, Sequence
 
 import sqlalchemy as sa
 
-from hestore.journal import as_of, as_of_kept
-from hestore.statements import Prepared
+from hestore._journal import as_of, as_of_kept
+from hestore._statements import Prepared
 
 __all__ = ["Query", "query", "registered", "Executor"]
 
@@ -156,7 +156,7 @@ class Executor:
     >>> import sqlite3
     >>> from sqlalchemy.dialects import sqlite
     >>> from hestore import schema
-    >>> from hestore.queries import elements
+    >>> from hestore._queries import elements
     >>> connection = sqlite3.connect(":memory:")
     >>> schema.metadata.create_all(sa.create_engine("sqlite://", creator=lambda: connection))
     >>> db = Executor(sqlite.dialect(paramstyle="qmark"), connection.cursor)
@@ -181,10 +181,10 @@ class Executor:
         return stmt
 
     def as_of(self, q: Query, *, kept: bool) -> Prepared:
-        """``q`` reading a mesh ``:m`` as it was at revision ``:asof`` (`hestore.journal.as_of`).
+        """``q`` reading a mesh ``:m`` as it was at revision ``:asof`` (`hestore._journal.as_of`).
 
         ``kept``: reading nothing unless that revision is still kept
-        (`hestore.journal.as_of_kept`). Planned for each call on
+        (`hestore._journal.as_of_kept`). Planned for each call on
         PostgreSQL: the best plan depends on the revision.
         """
         stmt = self._views.get((q, kept))

@@ -1,11 +1,11 @@
 """The statements of one element: its row and its neighbours' in one query, ids, counts (`hestore.navigation`'s).
 
 Each is a point read of mesh ``:m`` compiled once and run through
-`hestore.session.Session.fetch`, so it sees the open transaction's edits
-and, rewritten by `hestore.journal.as_of`, a view's revision. A twin is
+`hestore._session.Session.fetch`, so it sees the open transaction's edits
+and, rewritten by `hestore._journal.as_of`, a view's revision. A twin is
 outer-joined on its whole key (`twin_of`): a view rewrites such a join into
 two indexed joins, where an inner join would make it read the whole table.
-The stars of vertices are `hestore.queries.stars`'.
+The stars of vertices are `hestore._queries.stars`'.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 
 from hestore import schema
-from hestore.queries import query
-from hestore.statements import in_keys, indexed_by
+from hestore._queries import query
+from hestore._statements import in_keys, indexed_by
 
 __all__ = [
     "twin_of", "mesh", "exists", "halfedge", "vertex", "vertex_free", "ring", "polygon", "edge", "find_halfedge",
@@ -28,7 +28,7 @@ def twin_of(left: sa.FromClause = _H) -> tuple[sa.FromClause, sa.Join]:
     """The twins ``t`` of the half-edges, and ``left`` (the half-edges, or a join of them) outer-joined to them.
 
     On the twin's whole key: a view rewrites such a join into two indexed
-    joins (`hestore.journal.as_of`), where an inner join would make it read
+    joins (`hestore._journal.as_of`), where an inner join would make it read
     the whole table.
     """
     t = _H.alias("t")
@@ -84,7 +84,7 @@ def vertex_free():
 def ring():
     """``(p.halfedge, id, next, origin, edge, twin's polygon)`` of each half-edge of polygon ``:i``."""
     p = schema.polygons
-    # Joined on the parameters, not on p's columns: a view (`hestore.journal.as_of`) can then narrow the
+    # Joined on the parameters, not on p's columns: a view (`hestore._journal.as_of`) can then narrow the
     # half-edges before the join.
     own = p.outerjoin(_H, sa.and_(_H.c.mesh_id == sa.bindparam("m"), _H.c.polygon == sa.bindparam("i")))
     t, j = twin_of(own)

@@ -1,17 +1,17 @@
 """The SQL of the unit of work: batched loads of a mesh's rows, set-based writes of its changes.
 
-This module moves a `hestore.unitofwork.UnitOfWork`'s rows between the
+This module moves a `hestore._unitofwork.UnitOfWork`'s rows between the
 database and memory (SQLAlchemy's ``persistence`` to the unit of work):
 `Persistence.load` fetches stars, rings and rows by id in one ``UNION ALL``
-(`hestore.queries.stars.load`), with the positions, property catalogue and
-values the unit of work asks for (`hestore.queries`); `Persistence.write`
-turns one `hestore.unitofwork.ChangeSet` into one statement per table and
+(`hestore._queries.stars.load`), with the positions, property catalogue and
+values the unit of work asks for (`hestore._queries`); `Persistence.write`
+turns one `hestore._unitofwork.ChangeSet` into one statement per table and
 kind of change — an ``executemany`` on SQLite, a single statement over
 ``unnest``-ed arrays on PostgreSQL, and the binary ``COPY`` / multi-row
-``INSERT`` paths of `hestore.columns` for the whole tables of a bulk
+``INSERT`` paths of `hestore._columns` for the whole tables of a bulk
 import. It owns the write statements (registered queries ``uow.*``, and the
 PostgreSQL ``unnest`` SQL). It also reads and locks a mesh's catalogue row
-(`Persistence.mesh_row`). It is used by `hestore.session` only; it knows
+(`Persistence.mesh_row`). It is used by `hestore._session` only; it knows
 nothing of transactions.
 """
 
@@ -26,13 +26,13 @@ from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.schema import CreateTable
 
 from hestore import schema
-from hestore.columns import write_columns
-from hestore.journal import created_changes, to_history
-from hestore.queries import Executor, query
-from hestore.queries import catalogue, elements, history, stars, values as value_rows
-from hestore.statements import MAX_IN, in_chunks, in_keys, in_list_bucket, padded, padded_values
-from hestore.unitofwork import HE_COLUMNS, UNSET, BulkValues, ChangeSet, PropertyChanges
-from hestore.values import Property, dump_default, property_of, table_of
+from hestore._columns import write_columns
+from hestore._journal import created_changes, to_history
+from hestore._queries import Executor, query
+from hestore._queries import catalogue, elements, history, stars, values as value_rows
+from hestore._statements import MAX_IN, in_chunks, in_keys, in_list_bucket, padded, padded_values
+from hestore._unitofwork import HE_COLUMNS, UNSET, BulkValues, ChangeSet, PropertyChanges
+from hestore._values import Property, dump_default, property_of, table_of
 
 __all__ = ["Persistence"]
 
@@ -97,7 +97,7 @@ def _pg_statement(table: sa.Table, what: str, cols: tuple, sized: bool) -> str:
 
 
 def _pg_to_history(table: sa.Table, what: str, key: tuple, sized: bool) -> str:
-    """`hestore.journal.to_history` on PostgreSQL for the keys of ``unnest``-ed arrays, as a CTE of their write.
+    """`hestore._journal.to_history` on PostgreSQL for the keys of ``unnest``-ed arrays, as a CTE of their write.
 
     Parameters: ``old`` takes the revision, the key arrays, the mesh and the
     revision again; ``new`` the revision, the mesh and the key arrays.
@@ -148,7 +148,7 @@ _CATALOGUE = ("id", "kind", "name", "dtype", "size", "default_value")
 _VALUE_KEY = ("property", "id")
 _PAIR = ("id", "halfedge")
 _HE_UPDATE = ("id", "origin", "next", "prev", "polygon")
-#: The parameters of `hestore.queries.history.add_revision`, in the order `Persistence.write` has them.
+#: The parameters of `hestore._queries.history.add_revision`, in the order `Persistence.write` has them.
 _REVISION = ("m", "n", "at", "msg", "ch", "sv", "se", "sp", "sq", "act", "tgt")
 
 
@@ -186,8 +186,8 @@ def _mesh_update() -> sa.Update:
     )
 
 
-# The statements of a flush, each registered once (`hestore.queries.Query`); the reads of a load are
-# `hestore.queries.stars`', `hestore.queries.catalogue`'s and `hestore.queries.values`'.
+# The statements of a flush, each registered once (`hestore._queries.Query`); the reads of a load are
+# `hestore._queries.stars`', `hestore._queries.catalogue`'s and `hestore._queries.values`'.
 
 _UPDATE_MESH = query("uow.update_mesh")(_mesh_update)
 
@@ -258,11 +258,11 @@ def _write_rows(table: sa.Table, what: str, cols: tuple):
 
 
 class Persistence:
-    """The SQL a `hestore.unitofwork.UnitOfWork` needs: batched loads and set-based writes.
+    """The SQL a `hestore._unitofwork.UnitOfWork` needs: batched loads and set-based writes.
 
     Parameters
     ----------
-    db : hestore.queries.Executor
+    db : hestore._queries.Executor
         The session's statements, run on its cursor.
     """
 
@@ -300,7 +300,7 @@ class Persistence:
         ``(kind, id, ...)`` with kind `K_VERTEX` ``(id, halfedge)``, `K_HALFEDGE`
         ``(id, origin, next, prev, twin, edge, polygon)``, `K_EDGE` or
         `K_POLYGON` ``(id, halfedge)``, padded with NULLs. Each id list is
-        bucketed (`hestore.statements.in_list_bucket`), so a handful of
+        bucketed (`hestore._statements.in_list_bucket`), so a handful of
         compiled statements serve every operation.
         """
         parts = [(name, ids) for name, ids in want.items() if ids]
@@ -330,7 +330,7 @@ class Persistence:
     def values(self, mesh_id: int, props: list[Property], ids: list[int]) -> dict[tuple[int, int], list]:
         """Stored values of these properties for these elements: ``{(property id, id): rows}``.
 
-        Rows are ``(part, v0, …)`` as `hestore.values.value_of` reads them;
+        Rows are ``(part, v0, …)`` as `hestore._values.value_of` reads them;
         an element without a stored value has no entry. One statement per
         value table (and per 512 ids).
         """
@@ -355,7 +355,7 @@ class Persistence:
 
         Every row written carries the transaction's revision (``rev``); a row
         version an earlier revision wrote is first copied to its table's
-        history twin (`hestore.journal.to_history`), so history is recorded
+        history twin (`hestore._journal.to_history`), so history is recorded
         where the rows change: on PostgreSQL by the write statement itself
         (data-modifying CTEs, no extra round trip), on SQLite by one more
         statement per table, before the writes (for an element table, one
@@ -367,7 +367,7 @@ class Persistence:
         SQLite (in-process, so a row costs about a microsecond), and on
         PostgreSQL a single statement over ``unnest``-ed arrays, so the server
         does one set-based write instead of one round of work per row. Whole
-        tables of a bulk import go through `hestore.columns.write_columns`.
+        tables of a bulk import go through `hestore._columns.write_columns`.
         A dropped mesh loses every row and its catalogue row.
         """
         if changes.drop:
@@ -515,7 +515,7 @@ class Persistence:
         cursor.execute(f"TRUNCATE {staging.name}")
 
     def _journal(self, changes: ChangeSet, table: sa.Table, what: str, key: tuple, columns: list[list]) -> None:
-        """`hestore.journal.to_history` on SQLite for the rows matched by ``key`` columns.
+        """`hestore._journal.to_history` on SQLite for the rows matched by ``key`` columns.
 
         Rows picked by id: one statement per `MAX_IN` ids; by a longer key
         (a value's property and element): one ``executemany``. A row written
@@ -533,7 +533,7 @@ class Persistence:
         self.db.run_columns(_journal_keys(table, what, key), fixed, dict(zip(key, columns)))
 
     def _journal_where(self, changes: ChangeSet, table: sa.Table, what: str, where: str, values: dict) -> None:
-        """`hestore.journal.to_history` for every row a condition (`_WHERE`) picks: one ``INSERT ... SELECT``."""
+        """`hestore._journal.to_history` for every row a condition (`_WHERE`) picks: one ``INSERT ... SELECT``."""
         picked = _journal_picked(table, what, where, self.db.dialect.name)
         self.db.run(picked, {"m": changes.mesh_id, "r": changes.revision, **values})
 

@@ -5,7 +5,7 @@ These are seed 000's algorithms (``findFreeIncident``, ``makeAdjacent``,
 ``removeVertex``), extended with OpenMesh's boundary convention
 (``V_BOUNDARY``: a vertex with a free outgoing half-edge points at one).
 
-Every operation is a free function on a `hestore.unitofwork.UnitOfWork` and
+Every operation is a free function on a `hestore._unitofwork.UnitOfWork` and
 works on integer ids. Each first checks every precondition it can see
 without changing anything and raises a typed `hestore.errors.TopologyError`;
 only then does it mutate. ``makeAdjacent`` is the one check that can only be
@@ -33,7 +33,7 @@ from hestore.errors import (
     PolicyError,
     VertexNotFreeError,
 )
-from hestore.unitofwork import EDGE, NEXT, ORIGIN, POLYGON, PREV, TWIN, UnitOfWork
+from hestore._unitofwork import EDGE, NEXT, ORIGIN, POLYGON, PREV, TWIN, UnitOfWork
 
 __all__ = [
     "add_vertex",

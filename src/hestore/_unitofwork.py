@@ -1,11 +1,11 @@
 """The unit of work: a mesh's rows as one write transaction sees them.
 
 This module owns the in-memory side of editing. Topological operations
-(`hestore.kernel`) never talk to SQL; they read and write through a
+(`hestore._kernel`) never talk to SQL; they read and write through a
 `UnitOfWork`, which
 
 * loads rows in batches (a vertex's whole star in one query) through the
-  loader it was given (`hestore.persistence.Persistence.load`) and keeps
+  loader it was given (`hestore._persistence.Persistence.load`) and keeps
   them for the rest of the transaction — valid because the transaction holds
   the mesh's write lock, so nobody else can change them;
 * records every change of an operation in an undo log, so an operation that
@@ -14,7 +14,7 @@ This module owns the in-memory side of editing. Topological operations
 * hands over what changed since the last flush as a `ChangeSet` — a small
   typed record of inserted, updated and deleted rows per table, the id
   counters, whole tables of a bulk import, or the mesh's drop — which
-  `hestore.persistence` writes when the session flushes (before a read, a
+  `hestore._persistence` writes when the session flushes (before a read, a
   savepoint, or the commit). Every edit reaches the database through that one
   record, so whatever must see every change plugs in there.
 
@@ -38,8 +38,8 @@ from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
 from hestore import schema
 from hestore.errors import ElementNotFoundError, InvariantViolationError, InvalidInputError, Violation
-from hestore.values import Property, mean, value_of
-from hestore.values import rows as value_rows
+from hestore._values import Property, mean, value_of
+from hestore._values import rows as value_rows
 
 __all__ = [
     "UnitOfWork",
@@ -65,7 +65,7 @@ ORIGIN, NEXT, PREV, TWIN, EDGE, POLYGON = range(6)
 #: The ``halfedges`` columns of a loaded or inserted row, in record order after the id.
 HE_COLUMNS = ("id", "origin", "next", "prev", "twin", "edge", "polygon")
 
-#: Row kinds of `hestore.persistence.Persistence.load`'s result.
+#: Row kinds of `hestore._persistence.Persistence.load`'s result.
 K_VERTEX, K_HALFEDGE, K_EDGE, K_POLYGON = range(4)
 
 
@@ -162,7 +162,7 @@ class RowChanges(NamedTuple):
     """The rows of one table a flush inserts, updates and deletes, each list by id.
 
     ``inserted`` rows are full rows (id first, in the column order
-    `hestore.persistence` writes); ``updated`` rows are the id and the
+    `hestore._persistence` writes); ``updated`` rows are the id and the
     changed reference columns; ``deleted`` holds ids.
     """
 
@@ -184,7 +184,7 @@ class BulkRows(NamedTuple):
 class BulkValues(NamedTuple):
     """Values of one property for many elements, staged by one set-based call.
 
-    ``columns`` are `hestore.values.columns_of`'s (rows of the elements to
+    ``columns`` are `hestore._values.columns_of`'s (rows of the elements to
     set); ``unset`` the ids whose values are removed; ``replace_all``: the
     ids are every live element of the kind, so every old row goes first.
     A position write has ``prop`` None and columns ``id, x, y, z``.
@@ -277,7 +277,7 @@ class UnitOfWork:
     mesh_id : int
         The mesh.
     load : callable
-        ``load(mesh_id, want) -> rows``: `hestore.persistence.Persistence.load`.
+        ``load(mesh_id, want) -> rows``: `hestore._persistence.Persistence.load`.
     counters : tuple of int
         ``(next_vertex, next_edge, next_polygon, next_property)`` as stored.
     allow_loops, allow_multi_edges : bool
@@ -766,17 +766,17 @@ class ValueWork:
         The topology it belongs to.
     catalogue : callable, optional
         ``catalogue(mesh_id) -> list[Property]``: the declared properties
-        (`hestore.persistence.Persistence.catalogue`), loaded on first need.
+        (`hestore._persistence.Persistence.catalogue`), loaded on first need.
     has_properties : bool
         Whether the mesh has any property as stored (if not, the catalogue
         is never loaded for the deletions of a flush).
     read_values : callable, optional
         ``read_values(mesh_id, props, ids) -> {(property id, id): rows}``:
-        stored values (`hestore.persistence.Persistence.values`), read when
+        stored values (`hestore._persistence.Persistence.values`), read when
         an operator derives new elements' values from old ones (`derive`).
     read_positions : callable, optional
         ``read_positions(mesh_id, ids) -> {id: (x, y, z) or None}``: stored
-        positions (`hestore.persistence.Persistence.positions`).
+        positions (`hestore._persistence.Persistence.positions`).
     """
 
     def __init__(
@@ -834,7 +834,7 @@ class ValueWork:
         self._bulk_vals = [b for b in self._bulk_vals if b.prop is None or b.prop.id != prop.id]
 
     def set_value(self, prop: Property, i: int, value_rows: list | _Marker) -> None:
-        """Set element ``i``'s value of ``prop`` to these rows (`hestore.values.rows`), or `UNSET`."""
+        """Set element ``i``'s value of ``prop`` to these rows (`hestore._values.rows`), or `UNSET`."""
         self._uow.exists(prop.kind, i)
         self._uow._set(self._vals, (prop.id, i), (prop, value_rows))
 

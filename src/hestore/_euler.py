@@ -1,6 +1,6 @@
 """Euler operators: split, join, poke, flip, collapse, heal, fill and triangulate (SPEC §3.1).
 
-Each operator is a pair of free functions on a `hestore.unitofwork.UnitOfWork`:
+Each operator is a pair of free functions on a `hestore._unitofwork.UnitOfWork`:
 ``check_<op>`` reads what the operator needs and raises a typed
 `hestore.errors.TopologyError` (mostly `EulerError`, with a ``reason`` code)
 when a precondition fails, and returns what it found; ``<op>`` runs the same
@@ -32,8 +32,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from hestore.errors import EulerError, HalfEdgeNotFreeError, InvalidInputError, PolicyError
-from hestore.kernel import adjust_outgoing, check_policy, describe, edges_between, fans, polygon_loop, target, unlink
-from hestore.unitofwork import EDGE, NEXT, ORIGIN, POLYGON, PREV, TWIN, UnitOfWork
+from hestore._kernel import adjust_outgoing, check_policy, describe, edges_between, fans, polygon_loop, target, unlink
+from hestore._unitofwork import EDGE, NEXT, ORIGIN, POLYGON, PREV, TWIN, UnitOfWork
 
 __all__ = [
     "split_edge",

@@ -1,7 +1,7 @@
 """Compiled SQL for the hot paths.
 
 SQLAlchemy Core builds every statement from the tables in `hestore.schema`
-(the statements themselves are `hestore.queries`'); this module compiles
+(the statements themselves are `hestore._queries`'); this module compiles
 one for one dialect (`Prepared`) and runs it on the driver's own cursor. A
 point query through ``Connection.execute`` costs about 50 µs of Python
 here, the same query on the cursor about 10 µs, and navigation and editing
