@@ -116,7 +116,7 @@ TARGET_RATIO = 1.3  # to_networkx("multigraph") ÷ floor
 TARGET_SECONDS = 10.0  # stats(), check() (and, applied here, boundary_loops(), components())
 TARGET_CACHE = 0.010  # a second to_networkx(): "about 0"
 CACHE_CALLS = 20  # repeated calls after the second one; their median is the cache figure
-KEEP: list = []  # a child's graphs: left to the process's exit (see `harness.runner.child_main`)
+KEEP: list = []  # a child's graphs: left to the process's exit (see `harness.runner.run_step`)
 KINDS = ("multigraph", "graph")
 SUMMARIES = ("stats", "boundary_loops", "components", "check")
 #: Whether each kind's nodes carry ``pos`` (SPEC §6 names it for the multigraph; hestore's "graph" has it too).
@@ -793,10 +793,10 @@ def local_figures(bench: Bench, bname: str, m: str, fetch: dict | None, found: R
         figures.append(Figure(f"{query}, cold", bname, median_cold, total, f"≤ {target * 1e3:g} ms",
                               verdict(median_cold <= target), label, n=len(runs),
                               cpu=float(np.median([r["cpu"] for r in runs])), floor_parts=parts))
-        rep.notes.append(f"{bname} {label}: {query}: cold {', '.join(fmt_time(c) for c in cold)} ({len(runs)} fresh "
-                         f"processes, the median is the figure); warm (the same call again, median of {WARM_CALLS}) "
-                         f"{fmt_time(float(np.median([r['warm'] for r in runs])))}; networkx on its prebuilt graph "
-                         f"{fmt_time(q)}")
+        rep.notes.append(f"{bname} {label}: {query}: cold {', '.join(fmt_time(c) for c in cold)} ({len(runs)} "
+                         f"{bench.runner.process}es, the median is the figure); warm (the same call again, median of "
+                         f"{WARM_CALLS}) {fmt_time(float(np.median([r['warm'] for r in runs])))}; networkx on its "
+                         f"prebuilt graph {fmt_time(q)}")
         for pair, r in zip(floor["pairs"], found.figures.get((bname, m, query)) or []):
             if r:
                 rep.problems += [f"{bname} {label}: {query} from {pair['a']} to {pair['b']}: {x}"
@@ -933,7 +933,7 @@ def report(bench: Bench, only: list[str], found: Results) -> None:
                              + ", ".join(f"{b} {z}" for b, z in zeros[m].items())
                              + " (SQLite stores -0.0 as 0.0; compared as numbers they are equal)")
 
-    rep.title("hestore graph views and summaries benchmark — every figure one run in a fresh process")
+    rep.title(f"hestore graph views and summaries benchmark — every figure one run in a {bench.runner.process}")
     rep.figures(figures, after="""\
 (time: wall clock; its CPU: user + system time of the measuring process alone, without the database
  server's, a hint of how much other load on the machine slowed the wall clock down)""")

@@ -806,7 +806,7 @@ def _journal(name: str, bname: str, samples: dict, target: str, label: str, rss:
                                                             f"p90 {fmt_time(percentile(samples['n'], 0.9) / 1e9)}")
 
 
-def journal_figures(args, dims, runs, imports) -> list[Figure]:
+def journal_figures(args, dims, runs, imports, process: str) -> list[Figure]:
     """History vs history=False: the 1-polygon transactions, the edit transactions, the big one, the import."""
     out = []
     for bname in args.backends:
@@ -836,7 +836,7 @@ def journal_figures(args, dims, runs, imports) -> list[Figure]:
             parts = "missing"
             if n:
                 runs_n = ", ".join(f"{x['seconds']:.2f}" for x in imports[(bname, False)] if x)
-                parts = f"import_arrays, history=False, fresh process and database: fastest of {runs_n}"
+                parts = f"import_arrays, history=False, {process} and fresh database: fastest of {runs_n}"
             out.append(Figure("import_arrays of the grid", bname, h["seconds"], f, f"≤ {TARGET_IMPORT:.2f}× floor",
                               verdict(None if f is None else h["seconds"] <= TARGET_IMPORT * f),
                               triangles_label(*dims["large"]), n=len([x for x in imports[(bname, True)] if x]),
@@ -943,9 +943,9 @@ def gates(bench: Bench, dims: dict, runs: dict, imports: dict) -> None:
             if r:
                 rep.problems.extend(f"{bname} import: {p}" for p in r["problems"])
         secs = ", ".join(f"{r['seconds']:.2f} s" for r in results if r)
-        rep.notes.append(f"{bname}: import_arrays of the large grid, history={flag}: {secs} (fresh process and "
-                         "database each; peak RSS " + ", ".join(f"{r['rss'] / 2**20:,.0f} MiB" for r in results if r)
-                         + ")")
+        rep.notes.append(f"{bname}: import_arrays of the large grid, history={flag}: {secs} ({bench.runner.process} "
+                         "and fresh database each; peak RSS "
+                         + ", ".join(f"{r['rss'] / 2**20:,.0f} MiB" for r in results if r) + ")")
 
 
 def proportional_rows(args, dims, views: list[Figure]) -> list[list[str]]:
@@ -1002,11 +1002,12 @@ def report(bench: Bench, dims: dict, runs: dict, imports: dict) -> None:
     undos = undo_figures(args, dims, runs)
     rep.title(f"hestore history benchmark — seed {args.seed}; {args.repeat} timed 1-polygon transactions per variant "
               f"(after {args.warmup} untimed), {args.edits:,} edits, views {args.recent} and {args.edits:,} edits back")
-    rep.figures(journal_figures(args, dims, runs, imports), caption="""\
+    rep.figures(journal_figures(args, dims, runs, imports, bench.runner.process), caption=f"""\
 Journaling: each figure on the mesh with history, its floor the same work on the mesh created with
 history=False, each in a database of its own (time: the median of the n transactions, with and without
 history alternating call by call; the big transaction one run each; the import the fastest of n runs,
-each in a fresh process and database; mesh: triangles; target = SPEC §9, applied where marked):""")
+each in a {bench.runner.process} and fresh database; mesh: triangles; target = SPEC §9, applied where
+marked):""")
     rep.figures(views, caption="""\
 Reading the past: mesh.at(r) of the mesh with history, R its revision after the edits (time: the median
 of the n calls — per vertex for the reads, after an untimed pass of both; its CPU: the reads' mean CPU

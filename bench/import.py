@@ -889,7 +889,7 @@ def report(bench: Bench, only: list[str], floors: dict, results: dict) -> None:
     args, rep = bench.args, bench.report
     floor_gates(bench, only, floors)
     figures = [f for bname in args.backends for m in only for f in mesh_figures(bench, bname, m, floors, results)]
-    rep.title("hestore bulk import/export benchmark — every figure one run in a fresh process")
+    rep.title(f"hestore bulk import/export benchmark — every figure one run in a {bench.runner.process}")
     rep.figures(figures, after="""\
 (time: wall clock, the figure; its CPU: user + system time of the measuring process alone, without the
  database server's, a hint of how much other load on the machine slowed the wall clock down)""")

@@ -619,7 +619,7 @@ def report(bench: Bench, setups: dict, runs: dict) -> None:
                     rep.notes.append(f"{bname}: {title}: each run {each}")
 
     rep.title(f"hestore property benchmark — the stored {label}, {args.runs} run(s) of each column figure, "
-              f"{args.repeat} single-value transactions per run, each run in a fresh process")
+              f"{args.repeat} single-value transactions per run, each run in a {bench.runner.process}")
     rep.figures(figures, after="""\
 (time: one call, the median of the runs (n); for the single value the median of all calls (n) of all
  runs, and the floor the median of the floor's calls; its CPU: the measuring process's user + system

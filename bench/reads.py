@@ -327,7 +327,7 @@ def report(bench: Bench, ids: list[int], setups: dict, runs: dict) -> None:
                          f"({stars / len(ids):.2f} per vertex)")
 
     rep.title(f"hestore one-ring read benchmark — {len(ids):,} random vertices (seed {args.seed}) of the stored "
-              f"{label} grid, {args.runs} run(s) of each figure, each in a fresh process")
+              f"{label} grid, {args.runs} run(s) of each figure, each in a {bench.runner.process}")
     rep.figures(figures, after="""\
 (time: the loop's total ÷ the vertices, a mean per vertex with the first call included, median of the runs;
  p90: of the single calls of all runs; its CPU: the measuring process's user + system time per vertex,

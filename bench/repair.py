@@ -506,15 +506,15 @@ def report(bench: Bench, only, builds, runs, checks) -> None:
     args, rep = bench.args, bench.report
     gates(bench, only, builds, runs, checks)
     rep.title(f"hestore repair benchmark — imports with {SPLIT} against the plain import ({PLAIN}) of the same "
-              f"input; {args.runs} run(s) of each, each in a fresh process into a fresh database")
+              f"input; {args.runs} run(s) of each, each in a {bench.runner.process} into a fresh database")
     rep.figures(import_figures(args, only, runs), after="""\
 (time: one import, commit included, the median of the runs (n); floor: the plain import's median; its CPU:
  the median user + system time of the importing process alone, without the database server's; peak RSS:
  the largest of the runs', ru_maxrss of the importing process)""")
     parts = build_figures(args, only, builds)
-    rep.figures(parts, caption="""\
+    rep.figures(parts, caption=f"""\
 Repair decisions alone, in-process, no database (time: the median of the runs (n), each the first call
-in a fresh process, as in an import; the floor is build() of the same clean input — for the broken
+in a {bench.runner.process}, as in an import; the floor is build() of the same clean input — for the broken
 grid, of the unbroken grid — as the plain import runs it):""")
     if parts:
         rep.table("What the repair costs: its parts (medians), and the repaired import's time over the plain import's "

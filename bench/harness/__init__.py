@@ -1,5 +1,5 @@
-"""The harness hestore's benchmarks run on: timing, repeats and their statistics, parameters, steps in fresh
-processes, the backends, and the report.
+"""The harness hestore's benchmarks run on: timing, repeats and their statistics, parameters, steps in processes
+of their own, the backends, and the report.
 
 Each benchmark file in ``bench/`` (``edits.py``, ``reads.py``, ...) keeps its workloads, floors and targets and
 hands everything else to this package, as networkx's asv benchmarks leave timing, parameters and reporting to
@@ -10,8 +10,8 @@ Its modules, by topic (each says in its docstring who calls it):
 * `harness.cli`: the options every benchmark takes, and ``--quick``; in a step's process, the step;
 * `harness.bench`: one run of a benchmark in its parent process: the work folder, the runner, each backend in
   turn (`Bench.for_each_backend`), the exit status;
-* `harness.runner`: each step in a fresh process (`Runner`, `child_main`) and the one-shot figure a step times
-  (`one_shot`);
+* `harness.runner`: each step in a process of its own, a fresh interpreter or, with ``--quick``, a fork of the
+  benchmark's (`Runner`, `child_main`, `run_step`), and the one-shot figure a step times (`one_shot`);
 * `harness.databases`: where a run's databases live (`Place`), plain-driver connections to them, and what a step
   does to them before a timed region;
 * `harness.timing`: clocks, loops timed call by call, one-shot timing, peak RSS and CPU time;
@@ -22,5 +22,5 @@ Its modules, by topic (each says in its docstring who calls it):
   notes that end every output.
 
 The benchmark scripts run as ``python bench/<name>.py``, so ``bench/`` is the first entry of ``sys.path`` and
-``import harness`` needs no path set-up, in the parent and in every child step alike.
+``import harness`` needs no path set-up, in the parent and in every fresh child step alike.
 """

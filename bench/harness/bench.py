@@ -27,7 +27,7 @@ from collections.abc import Iterator
 
 from harness.databases import Place, open_backend
 from harness.report import Report, print_machine
-from harness.runner import Runner
+from harness.runner import FORKED_NOTE, Runner
 
 
 class Bench:
@@ -36,8 +36,9 @@ class Bench:
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed options (`harness.cli.Parser`): ``backends``, ``pg_url``, ``workdir`` and, for a benchmark
-        whose steps run in fresh processes, ``timeout``.
+        The parsed options (`harness.cli.Parser`): ``backends``, ``pg_url``, ``workdir``, ``quick`` and, for a
+        benchmark whose steps run in processes of their own, ``timeout`` and ``jobs`` (its table of jobs, which
+        the runner forks in a ``--quick`` run).
     name : str
         The benchmark's name, for the temporary work folder.
     script : str, optional
@@ -50,7 +51,7 @@ class Bench:
     ----------
     workdir : str
     runner : harness.runner.Runner or None
-        Reports failed steps in ``report.problems``.
+        Reports failed steps in ``report.problems``; when it forks the steps, ``report.notes`` says so.
     report : harness.report.Report
     """
 
@@ -62,7 +63,12 @@ class Bench:
         self._clean = clean
         self.workdir = args.workdir or tempfile.mkdtemp(prefix=f"hestore_bench_{name}_")
         os.makedirs(self.workdir, exist_ok=True)
-        self.runner = Runner(script, self.workdir, args.timeout, self.report.problems) if script else None
+        self.runner = None
+        if script:
+            self.runner = Runner(script, self.workdir, args.timeout, self.report.problems,
+                                 jobs=args.jobs if args.quick else None)
+            if self.runner.forks:
+                self.report.notes.append(FORKED_NOTE)
         self.pg_version: str | None = None
         self._load_start = os.getloadavg()
         self._t0 = time.perf_counter()

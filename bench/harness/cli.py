@@ -36,7 +36,8 @@ class Parser(argparse.ArgumentParser):
 
     Options given explicitly win over ``--quick``'s. The option groups a benchmark asks for: ``grid``
     (``--n``), ``meshes`` (``--only`` among these names, ``--meshes-dir``), ``jobs`` (``--timeout``, and the
-    hidden ``--child`` that `harness.runner.Runner` passes), ``profile`` (``--profile``), ``seed``.
+    hidden ``--child`` that `harness.runner.Runner` passes, and ``jobs`` itself, in the parsed options for
+    `harness.bench.Bench` to hand to its runner), ``profile`` (``--profile``), ``seed``.
 
     Parameters
     ----------
@@ -47,7 +48,8 @@ class Parser(argparse.ArgumentParser):
     workdir_help : str
         What ``--workdir`` holds in this benchmark (default: SQLite files).
     jobs : dict, optional
-        The benchmark's steps by name, each run in a fresh process (`harness.runner`).
+        The benchmark's steps by name, each run in a process of its own (`harness.runner`): a fresh interpreter,
+        or with ``--quick`` a fork of the benchmark's process.
     profile : bool or str
         Whether the benchmark takes ``--profile``; a string is its help text.
     """
@@ -60,7 +62,8 @@ class Parser(argparse.ArgumentParser):
         self.meshes = meshes
         self.jobs = jobs
         smoke = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in quick.items()) or "each benchmark's own"
-        self.add_argument("--quick", action="store_true", help=f"a smoke run of small sizes: {smoke}")
+        forked = ", each step forked from this process instead of a fresh interpreter" if jobs is not None else ""
+        self.add_argument("--quick", action="store_true", help=f"a smoke run of small sizes: {smoke}{forked}")
         self.add_argument("--backends", default=",".join(BACKENDS), help="sqlite and/or postgresql (default both)")
         self.add_argument("--pg-url", default=os.environ.get("HESTORE_BENCH_PG_URL", DEFAULT_PG_URL),
                           help="PostgreSQL server to use; a database is created there for the run and dropped at "
@@ -83,6 +86,7 @@ class Parser(argparse.ArgumentParser):
         if jobs is not None:
             self.add_argument("--timeout", type=float, default=1800, help="seconds allowed per step (default 1800)")
             self.add_argument("--child", help=argparse.SUPPRESS)
+            self.set_defaults(jobs=jobs)
 
     def parse_args(self, args=None, namespace=None):
         """Parse the command line with ``--quick``'s defaults when it is given; ``backends`` (and ``only``)
