@@ -434,6 +434,52 @@ def test_import_of_a_malformed_file(capsys, url, tmp_path, text, where, what):
     assert mesh_names(url) == []
 
 
+@pytest.mark.parametrize("suffix", [".obj", ".off", ".ply"])
+def test_import_of_what_is_not_a_mesh_file_is_refused_alike_in_every_format(capsys, url, tmp_path, suffix):
+    import base64
+    import random
+
+    garbage = random.Random("cli garbage").randbytes(200_000)
+    contents = {
+        "garbage": garbage,  # random bytes
+        "base64": base64.encodebytes(garbage),  # text, but not a mesh
+        "empty": b"",
+        "blank": b"\n  \n",
+    }
+    for stem, content in contents.items():
+        path = tmp_path / f"{stem}{suffix}"
+        path.write_bytes(content)
+        code, out, err = run(capsys, "--db", url, "import", str(path))
+        assert_one_line_error(code, out, err)
+        message = err.removeprefix(f"hestore: error: {path}:").rstrip("\n")
+        assert message != err.rstrip("\n"), err  # the file, then where in it
+        assert message.isascii() and message.isprintable() and len(message) < 200, err
+        if stem in ("empty", "blank"):
+            assert "the file is empty" in message, err
+    assert mesh_names(url) == []
+
+
+@pytest.mark.parametrize(
+    "name, content",
+    [("nothing.off", "OFF\n0 0 0\n"), ("nothing.obj", "o nothing\n"), ("nothing.ply", "ply\nformat ascii 1.0\n"
+     "element vertex 0\nproperty float x\nproperty float y\nelement face 0\nproperty list uchar int vertex_indices\n"
+     "end_header\n")],
+)
+def test_a_file_that_declares_no_vertices_imports_as_an_empty_mesh_that_info_calls_empty(capsys, url, tmp_path,
+                                                                                      name, content):
+    path = tmp_path / name
+    path.write_text(content)
+    code, out, err = run(capsys, "--db", url, "import", str(path))
+    assert code == 0 and "nothing: 0 vertices, 0 edges, 0 polygons" in out, (out, err)
+    code, out, err = run(capsys, "--db", url, "info", "nothing")
+    assert (code, err) == (0, "")
+    shown = info_lines(out)
+    assert shown["empty"] == "yes (no vertices: closed, manifold and genus do not apply)"
+    assert "closed" not in shown and "manifold" not in shown and "genus" not in shown
+    assert (shown["vertices"], shown["edges"], shown["polygons"], shown["components"]) == ("0", "0", "0", "0")
+    assert out.splitlines()[-1].startswith("empty:")
+
+
 def test_import_under_an_existing_name(capsys, db_url, tmp_path):
     path = write_tiny(tmp_path, "off")
     assert run(capsys, "--db", db_url, "import", str(path))[0] == 0
@@ -716,11 +762,16 @@ def test_info_of_other_shapes(capsys, db_url):
         code, text, err = run(capsys, "--db", db_url, "info", name)
         assert (code, err) == (0, ""), name
         lines = text.splitlines()
-        assert len(lines) == len(info) <= 24, name  # one screen
         shown = info_lines(text)
+        assert shown["Euler characteristic"] == str(info["euler_characteristic"])
+        if name == "empty":
+            # Closed, manifold and of genus 0 only vacuously: the text says what the mesh is instead.
+            assert len(lines) == len(info) - 2, name
+            assert shown["empty"].startswith("yes (no vertices") and "closed" not in shown and "genus" not in shown
+            continue
+        assert len(lines) == len(info) <= 24, name  # one screen
         assert shown["closed"] == ("yes" if info["is_closed"] else "no")
         assert shown["manifold"] == ("yes" if info["is_manifold"] else "no")
-        assert shown["Euler characteristic"] == str(info["euler_characteristic"])
 
     code, out, _ = run(capsys, "--db", db_url, "info", "wire")
     shown = info_lines(out)

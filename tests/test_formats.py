@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import pathlib
+import random
 import re
 import struct
 import threading
@@ -240,9 +241,11 @@ def test_obj_vertex_variants_crlf_comments_and_no_final_newline(tmp_path, reader
     assert_soup(soup, [(1, 2, 0), (1, 2, 3), (4, 5, 6), (7, 8, 9)], [[0, 1, 2, 3], [3, 2, 1]], [5, 8])
 
 
-def test_obj_without_faces_and_empty_obj(tmp_path, reader):
-    assert_soup(formats.read(put(tmp_path, "e.obj", "")), [], [], [])
+def test_obj_without_faces_and_obj_of_statements_without_geometry(tmp_path, reader):
     assert_soup(formats.read(put(tmp_path, "p.obj", "# points\nv 1 2 3\nl 1 1\n")), [(1, 2, 3)], [], [])
+    # OBJ has no header: statements without a vertex are its empty mesh.
+    assert_soup(formats.read(put(tmp_path, "e.obj", "# nothing yet\nmtllib none.mtl\no empty\n")), [], [], [])
+    assert_soup(formats.read(put(tmp_path, "g.obj", "\n\ng\n")), [], [], [])
 
 
 @pytest.mark.parametrize(
@@ -315,8 +318,8 @@ def test_off_header_variants_and_extra_values(tmp_path, reader):
 @pytest.mark.parametrize(
     "text, line, fragment",
     [
-        ("", 1, "empty file"),
-        ("# only a comment\n", 1, "empty file"),
+        ("", 1, "the file is empty"),
+        ("# only a comment\n", 1, "the file is empty"),
         ("# c\nOFX\n3 1 0\n", 2, "expected the OFF keyword, found 'OFX'"),
         ("3 1 0\n0 0 0\n", 1, "expected the OFF keyword, found '3'"),
         ("OFF BINARY\n3 1 0\n", 1, "binary OFF is not supported"),
@@ -640,7 +643,7 @@ def test_counts_beyond_int64_are_refused_with_file_and_line(tmp_path, count):
 def test_a_count_of_thousands_of_digits_is_refused_and_shown_short(tmp_path):
     digits = "9" * 5000  # past Python's int() digit limit, which raised a bare ValueError
     text = f"ply\nformat ascii 1.0\nelement vertex {digits}\n{ASCII_XYZ}end_header\n"
-    with pytest.raises(InvalidInputError, match=r"v\.ply:3: element vertex count '9{20}'\.\.\. \(5000 bytes\)") as e:
+    with pytest.raises(InvalidInputError, match=r"v\.ply:3: element vertex count '9{40}'\.\.\. \(5000 bytes\)") as e:
         formats.read(put(tmp_path, "v.ply", text))
     assert len(str(e.value)) < 200 + len(str(tmp_path))
     refused_cheaply(put(tmp_path, "v.off", f"OFF\n3 {digits} 0\n"), 2, "(5000 bytes) is too large")
@@ -670,7 +673,7 @@ def test_counts_that_exactly_fit_are_accepted(tmp_path):
         ("OFF\n+3 1 0\n", 2, "count '+3' is not an integer"),
         ("OFF\n3_0 1 0\n", 2, "count '3_0' is not an integer"),
         ("OFF\n0x3 1 0\n", 2, "count '0x3' is not an integer"),
-        ("OFF\n\u0663 1 0\n", 2, "count '\u0663' is not an integer"),
+        ("OFF\n\u0663 1 0\n", 2, "count '\\xd9\\xa3' is not an integer"),  # UTF-8 bytes, escaped
         ("OFF\n3 1 0\x00\n", 2, "is not an integer"),
         ("ply\nformat ascii 1.0\nelement vertex -0\n", 3, "element vertex count '-0' is negative"),
         ("ply\nformat ascii 1.0\nelement vertex 1e3\n", 3, "element vertex count '1e3' is not an integer"),
@@ -741,9 +744,143 @@ def test_non_utf8_and_nul_bytes_give_typed_errors(tmp_path):
 
 def test_a_long_header_line_is_not_quoted_whole(tmp_path):
     path = put(tmp_path, "x.ply", b"ply\nformat ascii 1.0\n" + b"x" * 1_000_000 + b"\nend_header\n")
-    with pytest.raises(InvalidInputError, match=r"unknown PLY header keyword 'x{20}'\.\.\. \(1000000 bytes\)") as e:
+    with pytest.raises(InvalidInputError, match=r"unknown PLY header keyword 'x{40}'\.\.\. \(1000000 bytes\)") as e:
         formats.read(path)
     assert len(str(e.value)) < 200 + len(str(path))
+
+
+# -- files that are not meshes, empty files, and the bytes messages quote -----
+
+
+def refusal(path: pathlib.Path) -> str:
+    """The message of the `InvalidInputError` that reading ``path`` raises, checked to name the file and a line."""
+    with pytest.raises(InvalidInputError) as info:
+        formats.read(path)
+    message = str(info.value)
+    assert re.match(re.escape(str(path)) + r":(\d+|byte \d+): ", message), message
+    return message
+
+
+def random_bytes(seed: str, n: int) -> bytes:
+    return random.Random(seed).randbytes(n)
+
+
+def test_obj_reader_refuses_random_bytes(tmp_path, reader):
+    for seed in range(5):
+        data = random_bytes(f"garbage:{seed}", 200_000)
+        message = refusal(put(tmp_path, "garbage.obj", data))
+        assert "not an OBJ file: binary data (a NUL byte) before any OBJ statement" in message, message
+
+
+def test_obj_reader_refuses_text_without_any_obj_statement(tmp_path, reader):
+    import base64
+
+    data = base64.encodebytes(random_bytes("base64", 30_000))
+    assert_read_refused(put(tmp_path, "b64.obj", data), 1, "not an OBJ file: no line is an OBJ statement")
+    prose = "\n# a note\nThis is not a mesh.\nNor is this.\n"
+    expected = "no line is an OBJ statement (v, f, ...); this one starts with 'This'"
+    assert_read_refused(put(tmp_path, "note.obj", prose), 3, expected)
+    # UTF-16 text has a NUL byte in every ASCII character.
+    utf16 = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode("utf-16")
+    assert_read_refused(put(tmp_path, "wide.obj", utf16), 1, "binary data (a NUL byte)")
+    # A statement keyword on a line that is not text does not make the file OBJ.
+    assert_read_refused(put(tmp_path, "g.obj", b"g \x01\x02\xff\nzz\n"), 1, "no line is an OBJ statement")
+
+
+def test_obj_reader_keeps_unknown_statements_and_non_utf8_text_in_real_files(tmp_path, reader):
+    text = b"# caf\xe9 (Latin-1)\nvendor_thing 1 2 3\ng caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\ncurv 0 1 1 2\nf 1 2 3\n"
+    assert_soup(formats.read(put(tmp_path, "l.obj", text)), TRIANGLE, [[0, 1, 2]], [8])
+    # Unknown statements before the first known one, and more than a chunk of them.
+    text = "xyz 1\n" * 20 + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    assert_soup(formats.read(put(tmp_path, "u.obj", text)), TRIANGLE, [[0, 1, 2]], [24])
+
+
+@pytest.mark.parametrize(
+    "name, text, line",
+    [
+        ("e.off", "", 1),
+        ("e.off", "\n  \n\t\n", 3),
+        ("e.off", "# nothing\n  # at all", 2),
+        ("e.obj", "", 1),
+        ("e.obj", "\r\n \n", 2),
+        ("e.obj", "# nothing\n\n  # at all\n", 3),
+        ("e.ply", "", 1),
+        ("e.ply", "\n \t\n\n", 3),
+    ],
+)
+def test_a_file_with_nothing_in_it_is_refused_as_empty(tmp_path, reader, name, text, line):
+    """One rule for every format: no bytes, or only whitespace and comments, is not a mesh file at all."""
+    assert_read_refused(put(tmp_path, name, text), line, "the file is empty")
+
+
+@pytest.mark.parametrize("fmt", PLY_FORMATS)
+def test_a_file_that_declares_nothing_is_an_empty_mesh(tmp_path, reader, fmt):
+    """The other half of the rule: a well-formed header (or statement) with zero vertices and faces is read."""
+    lines = None if fmt != "ascii" else []
+    nothing = [("vertex", XYZ, []), ("face", [("list", "uchar", "int", "vertex_indices")], [])]
+    assert_soup(formats.read(put(tmp_path, "z.ply", ply(fmt, nothing))), [], [], lines)
+    assert_soup(formats.read(put(tmp_path, "z.off", "# declared empty\nOFF\n0 0 0\n")), [], [], [])
+    assert_soup(formats.read(put(tmp_path, "z.off", "OFF 0 0")), [], [], [])
+    assert_soup(formats.read(put(tmp_path, "z.obj", "mtllib none.mtl\n")), [], [], [])
+
+
+def test_show_escapes_and_cuts_what_it_quotes():
+    assert common.show(b"zero") == "'zero'"
+    assert common.show(b"\x1b[31m\x00\xff\t'\\") == "'\\x1b[31m\\x00\\xff\\t\\'\\\\'"
+    assert common.show("café".encode()) == "'caf\\xc3\\xa9'"  # text too: printable ASCII only
+    assert common.show(b"x" * 41) == "'" + "x" * 40 + "'... (41 bytes)"
+    cut = common.show(b"\xff" * 100)
+    assert cut == "'" + "\\xff" * 10 + "'... (100 bytes)"
+
+
+def _garbage(seed: str, n: int, word: bool = False) -> bytes:
+    """Random bytes on one line; a single word (no whitespace) if ``word``."""
+    rng = random.Random(seed)
+    banned = set(b" \t\r\x0b\x0c\n#") if word else {ord("\n")}
+    allowed = [b for b in range(256) if b not in banned]
+    return bytes([rng.choice(b"qQ~")]) + bytes(rng.choice(allowed) for _ in range(n - 1))
+
+
+_PLY_ASCII = b"ply\nformat ascii 1.0\n"
+_PLY_BINARY = b"ply\nformat binary_little_endian 1.0\n"
+GARBLED = {
+    "keyword.off": lambda g, w: g + b"\n3 1 0\n",
+    "counts.off": lambda g, w: b"OFF\n" + g + b"\n",
+    "dimension.off": lambda g, w: b"nOFF\n" + w + b"\n3 1 0\n",
+    "vertex.off": lambda g, w: b"OFF\n1 0 0\n0 " + g + b"\n",
+    "face.off": lambda g, w: b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 " + g + b"\n",
+    "lines.obj": lambda g, w: g + b"\n" + g + b"\n",
+    "vertex.obj": lambda g, w: b"v 0 0 0\nv 1 " + g + b"\n",
+    "face.obj": lambda g, w: b"v 0 0 0\nf 1 " + g + b"\n",
+    "uv.obj": lambda g, w: b"v 0 0 0\nvt 0 0\nf 1/" + w + b"\n",
+    "keyword.ply": lambda g, w: _PLY_ASCII + g + b"\nend_header\n",
+    "format.ply": lambda g, w: b"ply\nformat " + g + b"\nend_header\n",
+    "count.ply": lambda g, w: _PLY_ASCII + b"element vertex " + w + b"\nend_header\n",
+    "type.ply": lambda g, w: _PLY_ASCII + b"element vertex 1\nproperty " + w + b" x\nend_header\n",
+    "name.ply": lambda g, w: _PLY_ASCII
+    + b"element vertex 1\nproperty float x\nproperty float y\nproperty uchar "
+    + w
+    + b"\nend_header\n0 0 300\n",
+    "element.ply": lambda g, w: _PLY_ASCII + b"element " + w + b" 1\nproperty float q\nend_header\n",
+    "binary-element.ply": lambda g, w: _PLY_BINARY + b"element " + w + b" 1\nproperty float q\nend_header\n",
+    "list.ply": lambda g, w: _PLY_BINARY
+    + b"element "
+    + w
+    + b" 1\nproperty list uchar int "
+    + w
+    + b"\nend_header\n\x05",
+}
+
+
+@pytest.mark.parametrize("name", list(GARBLED))
+def test_quoted_file_content_is_one_short_printable_line(tmp_path, name):
+    for seed in range(10):
+        garbage, word = _garbage(f"{name}:{seed}", 300), _garbage(f"{name}:{seed}:word", 300, word=True)
+        path = put(tmp_path, name, GARBLED[name](garbage, word))
+        what = refusal(path)[len(str(path)) :]
+        context = f"seed {seed}: {what!r}"
+        assert what.isascii() and what.isprintable(), context  # one line, no control or escape sequences
+        assert len(what) <= 200, context  # two quoted pieces at most, each cut short
 
 
 def test_a_line_longer_than_many_chunks_is_read_in_linear_time(tmp_path, monkeypatch):

@@ -190,14 +190,29 @@ def _info_value(key: str, value: object, info: dict) -> str:
     return str(value)
 
 
+#: The verdicts of `info` that a mesh without vertices meets only vacuously: its text form says "empty" instead.
+_VACUOUS = ("genus", "is_closed", "is_manifold")
+
+
 def info_lines(info: dict, properties: list[dict]) -> list[str]:
     """The text form of ``info``: a labelled line per key of `info`, then the properties (`property_rows`).
+
+    A mesh without vertices has every count 0, and `hestore.summary.Stats`
+    calls it closed, manifold and of genus 0, as a statement about nothing
+    is true; read as verdicts, that misleads. Its text form keeps the counts
+    and ends with a line saying that the mesh is empty instead (the JSON
+    form keeps the figures as they are).
 
     Examples
     --------
     >>> info_lines({"name": "t", "is_closed": False, "genus": None, "wire_edges": 1}, [])
     ['name:        t', 'closed:      no', 'genus:       - (wire edges)', 'wire edges:  1']
+    >>> info_lines({"name": "e", "vertices": 0, "genus": 0, "is_closed": True, "is_manifold": True}, [])
+    ['name:      e', 'vertices:  0', 'empty:     yes (no vertices: closed, manifold and genus do not apply)']
     """
+    if info.get("vertices") == 0:
+        info = {key: value for key, value in info.items() if key not in _VACUOUS}
+        info["empty"] = "yes (no vertices: closed, manifold and genus do not apply)"
     labels = {key: INFO_LABELS.get(key, key) for key in info}
     width = max(len(label) for label in labels.values()) + 1
     lines = [f"{labels[key] + ':':<{width}}  {_info_value(key, value, info)}" for key, value in info.items()]

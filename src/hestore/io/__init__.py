@@ -65,7 +65,10 @@ module that touches a file uses). A malformed file makes a
 reader raise nothing else, and header counts are never trusted: each is
 checked against what the rest of the file can hold before anything is
 allocated for it, so memory and time stay within a small multiple of the
-file's size.
+file's size. What a message quotes of the file is escaped to printable
+ASCII and cut short (`hestore.io.common.show`). Every format refuses an
+empty file — no bytes, or only whitespace and comments — and reads one that
+declares zero vertices and faces as an empty soup.
 
 Examples
 --------

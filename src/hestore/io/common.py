@@ -9,7 +9,10 @@ This module belongs to `hestore.io` and is not public API, apart from
   `~hestore.errors.InvalidInputError` as ``"{path}:{where}: {what}"``, and
   every file the system refuses (missing, a folder, no permission, a full
   disk) as ``"cannot read {path}: {reason}"`` (`file_errors`, which the
-  package re-exports for every module that reads or writes files);
+  package re-exports for every module that reads or writes files); the
+  refusal of an empty file (`empty`), the same rule in every format; and the
+  one way a message quotes the file's content (`show`, and `named` for
+  header names), escaped and cut short;
 * number tokens: the strict per-token conversions of the per-line readers
   and the vectorised `parse` of whole chunks;
 * header counts: `count` parses them strictly and `check_room` bounds them
@@ -259,11 +262,68 @@ def error(path: str, where, what: str) -> InvalidInputError:
     return InvalidInputError(f"{path}:{where}: {what}")
 
 
-def show(token: bytes) -> str:
-    """A token as messages quote it; a long one (a runaway number, a binary blob) cut short."""
-    if len(token) > 40:
-        return f"{token[:20].decode('utf-8', 'replace')!r}... ({len(token)} bytes)"
-    return repr(token.decode("utf-8", "replace"))
+def empty(path: str, line: int, expected: str) -> InvalidInputError:
+    """The refusal of a file with nothing in it, worded alike by every reader.
+
+    The one rule for all formats: a file with no bytes, or only whitespace
+    and comments, holds no mesh — not even an empty one — and is refused; a
+    file that declares zero vertices and faces (``OFF 0 0 0``, PLY elements
+    of count 0, OBJ statements without a vertex) is an empty mesh.
+    """
+    return error(path, line, f"the file is empty (nothing but whitespace or comments): expected {expected}")
+
+
+# The most characters of a file's content that a message quotes.
+SHOWN = 40
+
+
+def _escape(code: int) -> str:
+    """How `show` writes a byte: printable ASCII as itself, any other as ``repr`` escapes it."""
+    char = chr(code)
+    if char in "\\'":
+        return "\\" + char
+    return char if 0x20 <= code < 0x7F else ascii(char)[1:-1]
+
+
+def show(piece: bytes) -> str:
+    """A piece of a file as messages quote it: escaped to printable ASCII, and cut short.
+
+    Every reader quotes what it found through here, so that a message stays
+    one short printable line whatever the file holds (a binary blob, terminal
+    escape sequences, a runaway number). ``repr``-like: printable ASCII is
+    kept and every other byte is an escape (``\\x00``, ``\\n``, ``\\xff``). At
+    most `SHOWN` characters are quoted, each escape whole; what is cut is
+    followed by ``...`` and the size of the whole.
+
+    Examples
+    --------
+    >>> print(show(b"zero"), show(b"\\x1b[31m\\x00\\xff"), show("café".encode()))
+    'zero' '\\x1b[31m\\x00\\xff' 'caf\\xc3\\xa9'
+    >>> print(show(b"9" * 5000))
+    '9999999999999999999999999999999999999999'... (5000 bytes)
+    """
+    out: list[str] = []
+    used = 0
+    # No escape is shorter than one character: SHOWN bytes are all that can be quoted.
+    for code in piece[:SHOWN]:
+        text = _escape(code)
+        if used + len(text) > SHOWN:
+            break
+        out.append(text)
+        used += len(text)
+    quoted = "'" + "".join(out) + "'"
+    return quoted if len(out) == len(piece) else f"{quoted}... ({len(piece)} bytes)"
+
+
+def named(name: bytes) -> str:
+    """A name from a file's header (a PLY element or property) as messages use it unquoted.
+
+    The name itself when it is a short word of printable ASCII, as names are;
+    any other is quoted by `show`.
+    """
+    if 0 < len(name) <= SHOWN and all(0x20 < code < 0x7F for code in name):
+        return name.decode("ascii")
+    return show(name)
 
 
 def ranges(starts: np.ndarray, lengths: np.ndarray, step: int = 1) -> np.ndarray:

@@ -19,7 +19,16 @@ other statement is skipped — ``g``, ``o``, ``s``, ``usemtl``, ``mtllib``,
 polygons. Line continuations (a trailing ``\\``) on ``v``, ``vt``, ``vn``
 and ``f`` lines are refused.
 
-The writer writes ``v x y z`` lines, then ``f`` lines with 1-based indices.
+OBJ has no header, so the reader asks of a file that some line be an OBJ
+statement: text (UTF-8, no control bytes) whose first word is one of the
+format's statements (`_STATEMENTS`; unknown ones are skipped, but do not make
+a file OBJ). A file with none is refused: as empty when it holds nothing but
+whitespace and comments, as binary data when a NUL byte comes before the
+first statement, and as not OBJ otherwise (base64, prose). A file of
+statements without a vertex (``mtllib``, ``o``) is an empty mesh.
+
+The writer writes ``v x y z`` lines, then ``f`` lines with 1-based indices
+(an empty mesh: the lone statement ``g``).
 Given per-corner ``"uv"`` or ``"normal"`` arrays, it also writes their
 distinct rows as ``vt`` and ``vn`` lines (in order of first use) and refers
 to them corner by corner (``v/vt``, ``v//vn`` or ``v/vt/vn``; a corner whose
@@ -30,6 +39,7 @@ round-trip form, so reading the file back gives exactly the same arrays.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -51,6 +61,7 @@ from hestore.io.common import (
     checked_arrays,
     coordinate,
     created,
+    empty,
     error,
     first3,
     integer,
@@ -202,6 +213,10 @@ def write_obj(
     normals, normal_refs = _distinct_rows(corner_properties, "normal", 3, len(indices))
     report = RowProgress(progress, positions, offsets)
     with created(path) as f:
+        if len(positions) == 0:
+            # A file of no statement at all is refused as empty: an empty
+            # mesh is the default group, which reads back as nothing.
+            f.write(b"g\n")
         if uv_refs is None and normal_refs is None:
             write_text_rows(f, positions, offsets, indices, "v ", "f", 1, report)
         else:
@@ -324,7 +339,9 @@ def _read(src: TextFile) -> PolygonSoup:
     defined = 0  # vertices so far, the base of negative indices
     texture = _Corners("vt", "texture coordinate", 2)
     normal = _Corners("vn", "normal", 3)
+    statements = _Statements(src.path)
     for chunk in src.chunks():
+        statements.look(chunk)
         found = _chunk_fast(chunk, defined, texture.defined, normal.defined)
         if found is None:
             found = _chunk_slow(chunk, defined, texture.defined, normal.defined, src.path)
@@ -334,6 +351,7 @@ def _read(src: TextFile) -> PolygonSoup:
         defined += len(xyz)
         texture.add(uv, uv_refs, len(indices))
         normal.add(normals, normal_refs, len(indices))
+    statements.finish(src)
     soup = polygons.soup(positions)
     corners = {}
     for name, kind in [("uv", texture), ("normal", normal)]:
@@ -341,6 +359,71 @@ def _read(src: TextFile) -> PolygonSoup:
         if values is not None:
             corners[name] = values
     return replace(soup, corner_properties=corners) if corners else soup
+
+
+# Every statement of the OBJ format — vertex data, elements, grouping, display
+# and render attributes, free-form geometry, and the superseded ones — as the
+# first word of a line.
+_STATEMENTS = (
+    b"v vt vn vp f l p g o s mg usemtl mtllib usemap maplib lod bevel c_interp d_interp shadow_obj trace_obj "
+    b"ctech stech cstype deg bmat step curv curv2 surf parm trim hole scrv sp end con call csh bsp bzp cdc cdp res"
+).split()
+_STATEMENT = re.compile(rb"^[^\S\n]*(?:" + b"|".join(_STATEMENTS) + rb")(?=[\s#]|\Z)", re.MULTILINE)
+_CONTENT = re.compile(rb"^[^\S\n]*([^\s#]+)", re.MULTILINE)  # a line's first word
+_CONTROL = re.compile(rb"[\x00-\x08\x0e-\x1f\x7f]")  # bytes that text does not hold
+
+
+class _Statements:
+    """Whether a file is OBJ at all, chunk by chunk until its first statement.
+
+    Every line the reader does not know is skipped, so without this any file
+    — binary data, base64, nothing at all — would read as an empty mesh.
+    """
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.found = False
+        self.first: tuple[int, bytes] | None = None  # the first line holding a word, and the word
+
+    def look(self, chunk: Chunk) -> None:
+        """Find the chunk's first statement, before the reader parses it; refuse binary data that comes first."""
+        if self.found:
+            return
+        data = chunk.data
+        nul = data.find(b"\x00")
+        for match in _STATEMENT.finditer(data, 0, len(data) if nul < 0 else nul):
+            i = int(np.searchsorted(chunk.ends, match.start()))
+            line = data[chunk.starts[i] : chunk.ends[i]].split(b"#", 1)[0]
+            if _is_text(line):
+                self.found = True
+                return
+        if nul >= 0:
+            line = chunk.line0 + int(np.searchsorted(chunk.ends, nul))
+            raise error(self.path, line, "not an OBJ file: binary data (a NUL byte) before any OBJ statement")
+        if self.first is None:
+            word = _CONTENT.search(data)
+            if word is not None:
+                self.first = chunk.line0 + int(np.searchsorted(chunk.ends, word.start())), word[1]
+
+    def finish(self, src: TextFile) -> None:
+        """Refuse the file read if no line of it was a statement."""
+        if self.found:
+            return
+        if self.first is None:
+            raise empty(self.path, src.last_line, "OBJ statements such as v and f")
+        line, word = self.first
+        what = f"not an OBJ file: no line is an OBJ statement (v, f, ...); this one starts with {show(word)}"
+        raise error(self.path, line, what)
+
+
+def _is_text(line: bytes) -> bool:
+    if _CONTROL.search(line):
+        return False
+    try:
+        line.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
 
 
 def _resolve(raw: np.ndarray, before: np.ndarray) -> np.ndarray:

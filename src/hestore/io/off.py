@@ -4,12 +4,14 @@ What the reader accepts: the keyword ``OFF``, optionally prefixed ``ST``,
 ``C``, ``N`` and ``n`` (``nOFF`` gives the dimension, 2 or 3, on the next
 token), then the vertex, face and (ignored) edge counts, on the keyword's line
 or the next. ``#`` starts a comment anywhere, before the keyword too; blank
-lines are skipped. One vertex or face per line: values after x, y, z
-(colours, normals, texture coordinates) and after a face's indices (colours)
-are ignored, as is anything after the last face. Binary OFF and homogeneous
-``4OFF`` are refused. The counts are at most 2**63 - 1, and every vertex and
-face takes a line, so they must fit in the bytes after the header. The
-soup's property dicts stay empty: OFF colours and normals are not kept.
+lines are skipped. A file of nothing but comments and blank lines is refused
+as empty; ``OFF`` with counts of 0 is an empty mesh. One vertex or face per
+line: values after x, y, z (colours, normals, texture coordinates) and after
+a face's indices (colours) are ignored, as is anything after the last face.
+Binary OFF and homogeneous ``4OFF`` are refused. The counts are at most
+2**63 - 1, and every vertex and face takes a line, so they must fit in the
+bytes after the header. The soup's property dicts stay empty: OFF colours and
+normals are not kept.
 
 The writer writes ``OFF``, the counts with an edge count of 0, one vertex per
 line (x y z) and one polygon per line (its vertex count, then its indices).
@@ -33,6 +35,7 @@ from hestore.io.common import (
     checked_arrays,
     count,
     created,
+    empty,
     error,
     integer,
     read_file,
@@ -142,7 +145,7 @@ def _read(src: TextFile) -> PolygonSoup:
     path = src.path
     first = src.content_line(comments=True)
     if first is None:
-        raise error(path, src.last_line, "empty file: expected the OFF keyword")
+        raise empty(path, src.last_line, "the OFF keyword")
     tokens, line = first
     keyword = _KEYWORD.fullmatch(tokens[0])
     if keyword is None:

@@ -15,9 +15,12 @@ Other elements (``edge``, ``material``, even
 ``tristrips``) are skipped, as are ``comment`` and ``obj_info`` lines. A file
 without a ``face`` element is a point set: positions and no polygons; one
 with neither a ``vertex`` nor a ``face`` element is empty, as OpenMesh reads
-it. Element counts are at most 2**63 - 1 and must fit in the bytes after the
-header (ASCII: a line of at least two bytes per record; binary: checked
-element by element against the bytes that remain).
+it, and so is one whose elements have counts of 0; a file with no header at
+all (no bytes, or only whitespace) is refused as empty. Element counts are at
+most 2**63 - 1 and must fit in the bytes after the header (ASCII: a line of
+at least two bytes per record; binary: checked element by element against
+the bytes that remain). Names from the header are quoted in messages as
+`hestore.io.common.named` writes them.
 
 ASCII PLY is read like OFF, as sections of lines (`hestore.io.common`).
 Binary elements whose lists all have the same length are read as one
@@ -63,7 +66,9 @@ from hestore.io.common import (
     checked_arrays,
     count,
     created,
+    empty,
     error,
+    named,
     ranges,
     read_file,
     read_sections,
@@ -265,11 +270,21 @@ _TYPES = {
 _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 
 
+class _Named:
+    raw: bytes
+
+    @property
+    def label(self) -> str:
+        """The name as messages write it: itself, or quoted and escaped if it is not a plain word."""
+        return named(self.raw)
+
+
 @dataclass
-class _Property:
+class _Property(_Named):
     name: str
     type: str  # numpy type code of the value, or of the list items
     count_type: str | None = None  # numpy type code of a list's count
+    raw: bytes = b""  # the name as the file has it, for messages
 
     @property
     def is_list(self) -> bool:
@@ -277,11 +292,12 @@ class _Property:
 
 
 @dataclass
-class _Element:
+class _Element(_Named):
     name: str
     count: int
     line: int
     properties: list[_Property]
+    raw: bytes = b""  # the name as the file has it, for messages
 
     @property
     def has_lists(self) -> bool:
@@ -344,7 +360,7 @@ class _Element:
         integers = self._integers
         for i, prop in enumerate(self.properties):
             if at >= len(tokens):
-                raise error(path, line, f"{self.name} record ends before its property {prop.name!r}")
+                raise error(path, line, f"{self.label} record ends before its property {show(prop.raw)}")
             if not prop.is_list:
                 if i in integers:
                     record.append(_int_value(tokens[at], path, line, prop, integers[i].bounds))
@@ -352,19 +368,19 @@ class _Element:
                     record.append(_float_value(tokens[at], path, line))
                 at += 1
             else:
-                k = whole(tokens[at], path, line, f"{prop.name} count")
+                k = whole(tokens[at], path, line, f"{prop.label} count")
                 if k < 0:
-                    raise error(path, line, f"negative {prop.name} count {k}")
+                    raise error(path, line, f"negative {prop.label} count {k}")
                 items = tokens[at + 1 : at + 1 + k]
                 if len(items) < k:
-                    raise error(path, line, f"{prop.name} of {k} items has only {len(items)}")
+                    raise error(path, line, f"{prop.label} of {k} items has only {len(items)}")
                 if i == self.index_list and self.name == "face":
                     record.append([whole(t, path, line, "vertex index") for t in items])
                 else:
                     record.append([_float_value(t, path, line) for t in items])
                 at += 1 + k
         if at != len(tokens):
-            raise error(path, line, f"{self.name} record has {len(tokens) - at} values more than its properties")
+            raise error(path, line, f"{self.label} record has {len(tokens) - at} values more than its properties")
         return record
 
 
@@ -376,22 +392,25 @@ def _float_value(token: bytes, path: str, line: int) -> float:
 
 
 def _int_value(token: bytes, path: str, line: int, prop: _Property, bounds: tuple[int, int]) -> int:
-    value = whole(token, path, line, f"{prop.name} value")
+    value = whole(token, path, line, f"{prop.label} value")
     if not bounds[0] <= value <= bounds[1]:
         name = next(k for k, v in _TYPES.items() if v == prop.type)
-        raise error(path, line, f"{prop.name} value {show(token)} is out of range for {name}")
+        raise error(path, line, f"{prop.label} value {show(token)} is out of range for {name}")
     return value
 
 
-def _shown(word: str) -> str:
-    # A header "line" can be megabytes long (a binary body without end_header).
-    return show(word.encode())
+def _text(token: bytes) -> str:
+    return token.decode("ascii", "replace")
 
 
 def _read_header(f, path: str):
     """``(elements, byte order or None for ASCII, number of the first body line)``."""
     raw = f.readline()
     if raw.strip() != b"ply":
+        if not raw.strip():
+            rest = TextFile(f, path, 0, None, line=2)
+            if rest.content_line(comments=False) is None:
+                raise empty(path, rest.last_line, "the first line 'ply'")
         raise error(path, 1, "not a PLY file: the first line must be 'ply'")
     order = False
     elements: dict[str, _Element] = {}
@@ -401,55 +420,57 @@ def _read_header(f, path: str):
         number += 1
         if not raw:
             raise error(path, number - 1, "file ends inside the PLY header (no end_header)")
-        words = raw.decode("ascii", "replace").split()
-        if not words or words[0] in ("comment", "obj_info"):
+        # Split as bytes, as the body is; messages quote these raw words.
+        words = raw.split()
+        if not words or words[0] in (b"comment", b"obj_info"):
             continue
         key = words[0]
-        if key == "end_header":
+        if key == b"end_header":
             break
-        if key == "format":
-            if len(words) != 3 or words[1] not in _FORMATS:
-                raise error(path, number, f"unknown PLY format {_shown(' '.join(words[1:]))}")
-            order = _FORMATS[words[1]]
-        elif key == "element":
+        if key == b"format":
+            if len(words) != 3 or _text(words[1]) not in _FORMATS:
+                raise error(path, number, f"unknown PLY format {show(b' '.join(words[1:]))}")
+            order = _FORMATS[_text(words[1])]
+        elif key == b"element":
             if len(words) != 3:
                 raise error(path, number, "expected 'element <name> <count>'")
-            name = words[1]
+            name = _text(words[1])
             if name in elements:
-                raise error(path, number, f"element {_shown(name)} is declared twice")
-            n = count(words[2].encode(), path, number, f"element {name} count")
-            elements[name] = last = _Element(name, n, number, [])
-        elif key == "property":
+                raise error(path, number, f"element {show(words[1])} is declared twice")
+            n = count(words[2], path, number, f"element {named(words[1])} count")
+            elements[name] = last = _Element(name, n, number, [], words[1])
+        elif key == b"property":
             if not elements:
                 raise error(path, number, "property before any element")
             last.properties.append(_property(words, path, number))
         else:
-            raise error(path, number, f"unknown PLY header keyword {_shown(key)}")
+            raise error(path, number, f"unknown PLY header keyword {show(key)}")
     if order is False:
         raise error(path, number, "the PLY header has no format line")
     _check_elements(elements, path)
     return list(elements.values()), order, number + 1
 
 
-def _property(words: list[str], path: str, number: int) -> _Property:
-    def type_of(name: str) -> str:
+def _property(words: list[bytes], path: str, number: int) -> _Property:
+    def type_of(word: bytes) -> str:
+        name = _text(word)
         if name not in _TYPES:
-            raise error(path, number, f"unknown PLY property type {_shown(name)}")
+            raise error(path, number, f"unknown PLY property type {show(word)}")
         return _TYPES[name]
 
-    if len(words) == 5 and words[1] == "list":
+    if len(words) == 5 and words[1] == b"list":
         count_type = type_of(words[2])
         if count_type[0] == "f":
-            raise error(path, number, f"list count type must be an integer type, not {_shown(words[2])}")
-        return _Property(words[4], type_of(words[3]), count_type)
-    if len(words) == 3 and words[1] != "list":
-        return _Property(words[2], type_of(words[1]))
+            raise error(path, number, f"list count type must be an integer type, not {show(words[2])}")
+        return _Property(_text(words[4]), type_of(words[3]), count_type, words[4])
+    if len(words) == 3 and words[1] != b"list":
+        return _Property(_text(words[2]), type_of(words[1]), raw=words[2])
     raise error(path, number, "expected 'property <type> <name>' or 'property list <count type> <type> <name>'")
 
 
-def _check_elements(named: dict[str, _Element], path: str) -> None:
-    vertex = named.get("vertex")
-    face = named.get("face")
+def _check_elements(declared: dict[str, _Element], path: str) -> None:
+    vertex = declared.get("vertex")
+    face = declared.get("face")
     if vertex is None:
         # Neither vertices nor faces is an empty mesh, as OpenMesh reads it.
         if face is not None:
@@ -471,9 +492,9 @@ def _check_elements(named: dict[str, _Element], path: str) -> None:
     for element in (vertex, face):
         if element is not None:
             names = [p.name for p in element.properties]
-            twice = next((name for i, name in enumerate(names) if name in names[:i]), None)
+            twice = next((p for i, p in enumerate(element.properties) if p.name in names[:i]), None)
             if twice is not None:
-                raise error(path, element.line, f"the {element.name} element has two properties {_shown(twice)}")
+                raise error(path, element.line, f"the {element.name} element has two properties {show(twice.raw)}")
 
 
 # --------------------------------------------------------------------------
@@ -486,7 +507,7 @@ def _read(f, path: str, size: int, progress: Progress | None) -> PolygonSoup:
         room = size - f.tell()
         for e in elements:
             if e.properties:  # records of no properties take no line
-                check_room(path, e.line, e.count, f"{e.name} records", room, TEXT_RECORD_BYTES, slack=1)
+                check_room(path, e.line, e.count, f"{e.label} records", room, TEXT_RECORD_BYTES, slack=1)
                 room -= e.count * TEXT_RECORD_BYTES
         src = TextFile(f, path, size, progress, line=body_line)
         polygons = Polygons()
@@ -501,7 +522,7 @@ def _read(f, path: str, size: int, progress: Progress | None) -> PolygonSoup:
                 sections.append(faces)
             else:
                 skip = Skip(e.count if e.properties else 0)
-                skip.what = f"{e.name} records"
+                skip.what = f"{e.label} records"
                 sections.append(skip)
         read_sections(src, sections, comments=False)
         return polygons.soup(
@@ -638,7 +659,7 @@ def _binary_element(src: _BinaryFile, element: _Element, order: str) -> _Records
         array, complete = src.records(dtype, n)
         if complete < n:
             where = f"byte {start + complete * dtype.itemsize}"
-            raise error(src.path, where, f"file ends inside {element.name} {complete} of {n}")
+            raise error(src.path, where, f"file ends inside {element.label} {complete} of {n}")
         return _Records(element, order, start, array=array)
 
     # Guess that every record's lists are as long as the first record's, read
@@ -723,11 +744,11 @@ def _walk(buf: bytes, element: _Element, order: str, n: int, path: str, start: i
         if negative.size:
             i = int(negative[0])
             where = f"byte {start + starts[i]}"
-            raise error(path, where, f"negative list count {ks[i]} in {element.name} {i}")
+            raise error(path, where, f"negative list count {ks[i]} in {element.label} {i}")
     if r < n or pos > len(buf):
         ends = starts[1 : r + 1] + ([pos] if r == limit else [])
         bad = next((i for i, e in enumerate(ends) if e > len(buf)), min(r, limit - 1))
-        raise error(path, f"byte {start + starts[bad]}", f"file ends inside {element.name} {bad} of {n}")
+        raise error(path, f"byte {start + starts[bad]}", f"file ends inside {element.label} {bad} of {n}")
 
     at = np.array(starts, dtype=np.int64)
     offsets, counts, li = [], [], 0
