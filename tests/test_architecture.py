@@ -11,6 +11,8 @@ imports SQLAlchemy (a ``forbidden`` contract). Ruff's rules are in
 
 from __future__ import annotations
 
+import ast
+import importlib
 import pathlib
 import subprocess
 import sys
@@ -66,3 +68,29 @@ def test_public_names_are_exported_once():
 
     assert len(hestore.__all__) == len(set(hestore.__all__))
     assert all(hasattr(hestore, name) for name in hestore.__all__)
+
+
+def test_public_names_are_loaded_from_where_the_source_says():
+    # The package loads its names on first use (hestore._HOMES); tools that read the source see the imports
+    # under TYPE_CHECKING. The two, and __all__, must name the same names in the same modules.
+    import hestore
+
+    tree = ast.parse((ROOT / "src" / "hestore" / "__init__.py").read_text())
+    [guarded] = [node for node in tree.body if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"]
+    imported = {(node.module, alias.name) for node in guarded.body for alias in node.names}
+    loaded = {(module, name) for module, names in hestore._HOMES.items() for name in names}
+    assert imported == loaded
+    assert sorted(hestore.__all__) == sorted(name for _, name in loaded)
+    for module, name in loaded:
+        assert getattr(hestore, name) is getattr(importlib.import_module(module), name)
+
+
+def test_import_hestore_loads_nothing_else():
+    # What lets the command line's entry point (hestore.__main__) run, and catch Ctrl-C, before the heavy imports.
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys, hestore, hestore.__main__; print(sorted(sys.modules))"],
+        capture_output=True, text=True, check=True,
+    )
+    loaded = ast.literal_eval(done.stdout)
+    assert [m for m in loaded if m.startswith("hestore")] == ["hestore", "hestore.__main__"]
+    assert not [m for m in loaded if m.partition(".")[0] in ("sqlalchemy", "numpy", "typing", "dataclasses")]

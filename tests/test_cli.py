@@ -25,7 +25,7 @@ import sqlalchemy as sa
 
 import hestore
 from hestore import cli, migrate, progress, traversal
-from hestore.cli import commands, text
+from hestore.cli import commands, parser, text
 
 from helpers import run
 
@@ -111,6 +111,7 @@ def test_check_reports_violations(capsys, url):
 
 
 def test_list_of_an_empty_database(capsys, url):
+    assert run(capsys, "--db", url, "db", "upgrade")[0] == 0
     code, out, err = run(capsys, "--db", url, "list")
     assert (code, out) == (0, "")
     assert "no meshes" in err
@@ -146,6 +147,89 @@ def test_db_commands_on_a_new_database(capsys, tmp_path):
     assert run(capsys, "--db", url, "db", "current") == (0, f"{head} (head)\n", "")
     assert run(capsys, "--db", url, "db", "upgrade") == (0, f"{url}: already at head ({head})\n", "")
     assert run(capsys, "--db", url, "list")[0] == 0
+
+
+def _leaf_commands(table=parser.COMMANDS, words: tuple[str, ...] = ()):
+    """The words of every command that runs (``("graph", "path")``, not ``("graph",)``)."""
+    for command in table:
+        if command.commands:
+            yield from _leaf_commands(command.commands, (*words, command.name))
+        else:
+            yield (*words, command.name)
+
+
+#: Commands that make a database when there is none: they can start from nothing.
+CREATING = {("demo",), ("import",), ("db", "upgrade")}
+#: Every other command (but ``db current``, which reads below the store), with arguments it takes:
+#: each needs a database that exists, and says there is none rather than make one.
+NEEDING = {
+    ("list",): ["list"],
+    ("info",): ["info", "cube1"],
+    ("check",): ["check", "cube1"],
+    ("log",): ["log", "cube1"],
+    ("diff",): ["diff", "cube1", "0", "1"],
+    ("export",): ["export", "cube1", "{tmp}/cube1.off"],
+    ("render",): ["render", "cube1", "{tmp}/cube1.png"],
+    ("graph", "components"): ["graph", "cube1", "components"],
+    ("graph", "path"): ["graph", "cube1", "path", "0", "1"],
+    ("graph", "neighbors"): ["graph", "cube1", "neighbors", "0"],
+    ("graph", "degree-histogram"): ["graph", "cube1", "degree-histogram"],
+    ("graph", "export"): ["graph", "cube1", "export", "{tmp}/cube1.graphml"],
+    ("delete",): ["delete", "cube1"],
+    ("rename",): ["rename", "cube1", "cube2"],
+    ("copy",): ["copy", "cube1", "cube2"],
+    ("undo",): ["undo", "cube1"],
+    ("redo",): ["redo", "cube1"],
+    ("revert",): ["revert", "cube1", "0"],
+}
+
+
+def test_every_command_either_creates_a_database_or_needs_one():
+    assert set(_leaf_commands()) == CREATING | set(NEEDING) | {("db", "current")}
+
+
+@pytest.mark.parametrize("words", sorted(NEEDING), ids=" ".join)
+def test_a_command_on_a_database_that_does_not_exist_creates_nothing(capsys, tmp_path, monkeypatch, words):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("HESTORE_URL", raising=False)
+    argv = [arg.replace("{tmp}", str(tmp_path)) for arg in NEEDING[words]]
+    for db, name in ((["--db", "typo.db"], "typo.db"), (["--db", "sqlite:///typo.db"], "typo.db"), ([], "hestore.db")):
+        code, out, err = run(capsys, *db, *argv)
+        assert_one_line_error(code, out, err)
+        # It says there is none, and names the file.
+        assert f"no database at sqlite:///{name}: the file {tmp_path / name} does not exist" in err, err
+        assert list(tmp_path.iterdir()) == [], f"{' '.join(db + argv)} created {list(tmp_path.iterdir())}"
+
+
+def test_a_command_on_an_empty_database_creates_no_tables(capsys, tmp_path):
+    path = tmp_path / "empty.db"
+    url = f"sqlite:///{path}"
+    sa.create_engine(url).connect().close()  # an empty file: a SQLite database without tables
+    code, out, err = run(capsys, "--db", url, "info", "cube1")
+    assert_one_line_error(code, out, err)
+    assert f"{url} has no hestore tables" in err, err
+    assert migrate.database_state(url).status == "new"  # still no table
+    assert run(capsys, "--db", url, "demo")[0] == 0  # a command that creates still does
+    assert run(capsys, "--db", url, "check", "demo")[0] == 0
+
+
+def test_open_without_create(tmp_path, db_url):
+    path = tmp_path / "missing.db"
+    with pytest.raises(hestore.StoreNotFoundError, match=f"the file {path} does not exist"):
+        hestore.open(path, create=False)
+    with pytest.raises(hestore.StoreNotFoundError, match="does not exist"):
+        hestore.open(f"sqlite:///{path}", create=False)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(hestore.StoreNotFoundError, match="no hestore tables"):
+        hestore.open("sqlite://", create=False)  # in memory: new every time
+    assert issubclass(hestore.StoreNotFoundError, hestore.StoreError)
+    with pytest.raises(hestore.StoreNotFoundError):
+        hestore.open(db_url, create=False)  # a new database: a missing file, or no tables
+    assert migrate.database_state(db_url).status == "new"
+    with hestore.open(db_url) as store:
+        store.create_mesh("m")
+    with hestore.open(db_url, create=False) as store:  # a hestore database: opened as ever
+        assert store.meshes() == ["m"]
 
 
 def test_a_bare_path_means_a_sqlite_file(capsys, tmp_path):
@@ -219,6 +303,44 @@ def test_errors_are_one_line(capsys, tmp_path, argv):
     assert_one_line_error(*run(capsys, *argv))
 
 
+@pytest.mark.parametrize(
+    "db",
+    [
+        "postgresq://x/y",  # misspellings of a database hestore supports
+        "postgre://me@host/meshes",
+        "PostgreSQL://me@host/meshes",
+        "sqlit:///meshes.db",
+        "sqlite3:///meshes.db",
+        "http://example.com/db",  # not a database at all
+        "https://example.com/meshes.db",
+        "file:///tmp/meshes.db",
+        "nosuchdialect+nosuchdriver://host/db",
+        "postgresql+nodriver://me@host/meshes",  # a database hestore supports, through a driver it does not
+        "sqlite+nodriver:///meshes.db",
+    ],
+)
+def test_an_unsupported_database_url_is_one_clear_line(capsys, tmp_path, monkeypatch, db):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "--db", db, "list")
+    assert_one_line_error(code, out, err)
+    assert "unexpected" not in err and "a bug in hestore" not in err, err
+    # The same kind of line as mysql://: what is unsupported, and the spellings that work.
+    assert "unsupported" in err and ("postgresql+psycopg://" in err or "sqlite:///" in err), err
+    # The library says the same, typed, before any driver is looked for.
+    with pytest.raises(hestore.InvalidInputError, match="unsupported") as info:
+        hestore.open(db)
+    assert info.value.__cause__ is None and info.value.__context__ is None
+    assert str(info.value) in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_misspelt_database_name_gets_a_suggestion(capsys):
+    code, out, err = run(capsys, "--db", "postgresq://me@host/meshes", "list")
+    assert_one_line_error(code, out, err)
+    assert "did you mean postgresql" in err, err
+    assert "did you mean sqlite" in str(pytest.raises(hestore.InvalidInputError, hestore.open, "sqlit:///m.db").value)
+
+
 def test_usage_and_version(capsys):
     assert run(capsys, "--version") == (0, f"hestore {hestore.__version__}\n", "")
     code, out, err = run(capsys)
@@ -256,7 +378,10 @@ def test_console_script(tmp_path):
         pytest.skip(message)
     done = _run_process([script, "--version"], tmp_path)
     assert (done.returncode, done.stdout) == (0, f"hestore {hestore.__version__}\n")
-    done = _run_process([script, "list"], tmp_path)  # the default ./hestore.db
+    done = _run_process([script, "list"], tmp_path)  # the default ./hestore.db, which does not exist
+    assert done.returncode == 2 and "does not exist" in done.stderr, done.stderr
+    assert not (tmp_path / "hestore.db").exists()
+    done = _run_process([script, "demo"], tmp_path)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "hestore.db").is_file()
 
@@ -1170,6 +1295,113 @@ def test_ctrl_c_during_an_import_is_one_line_exit_130_and_stores_nothing(db_url,
             for table in ("vertices", "halfedges", "edges", "polygons"):
                 assert conn.execute(sa.text(f"SELECT count(*) FROM {table}")).scalar() == 0
         assert store.import_arrays("after", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [[0, 1, 2]]).mesh.check() == []
+
+
+#: The shared libraries a process maps while ``hestore`` imports its modules (numpy, SQLAlchemy): seen in
+#: /proc/PID/maps, they say the command line's own code runs and the import is under way.
+IMPORTING = ("numpy/_core/_multiarray_umath", "sqlalchemy/util/_collections_cy", "sqlalchemy/engine/_row_cy")
+
+
+def _maps(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/maps").read_text()
+    except OSError:  # the process is gone
+        return ""
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="reads /proc/PID/maps (Linux)")
+@pytest.mark.parametrize("entry", ["python -m hestore", "console script"])
+def test_ctrl_c_while_the_command_line_starts_is_one_line_exit_130(tmp_path, entry):
+    import signal
+    import time
+
+    if entry == "console script":
+        script = shutil.which("hestore", path=str(Path(sys.executable).parent))
+        if script is None:
+            pytest.skip(f"no `hestore` console script next to {sys.executable}")
+        command = [script]
+    else:
+        command = [sys.executable, "-m", "hestore"]
+    # A named pipe nobody writes to: opening it waits for ever, so the command can only end by the interrupt,
+    # whenever that comes, and the process is always there to receive it.
+    fifo = tmp_path / "never.off"
+    os.mkfifo(fifo)
+    env = {k: v for k, v in os.environ.items() if k != "HESTORE_URL"}
+    for marker in IMPORTING:
+        proc = subprocess.Popen(
+            [*command, "--db", str(tmp_path / "m.db"), "import", str(fifo)],
+            cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as a user's shell starts it
+        )
+        try:
+            deadline = time.monotonic() + HUNG
+            # Right after the import of hestore's modules starts: Python's own start-up (before any code of
+            # hestore runs) is past, and most of the import is still to come.
+            while marker not in _maps(proc.pid):
+                assert proc.poll() is None, f"the command ended before it was interrupted: {proc.communicate()}"
+                assert time.monotonic() < deadline, f"{marker} was never loaded"
+                time.sleep(0.001)
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=HUNG)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert "Traceback" not in err, (marker, err)
+        assert proc.returncode == 130, (marker, proc.returncode, err)
+        assert err == "hestore: interrupted; the unfinished command changed nothing\n" and out == "", (marker, err)
+
+
+def test_busy_timeout_reaches_the_store(capsys, db_url, tmp_path):
+    import threading
+
+    with hestore.open(db_url) as store:
+        mesh = store.create_mesh("m")
+        mesh.add_vertex()
+        mesh.add_vertex()
+    held, release, done = threading.Event(), threading.Event(), []
+
+    def hold() -> None:
+        # Another writer: a transaction on mesh m, open until released.
+        with hestore.open(db_url) as other:
+            with other.transaction():
+                other.mesh("m").add_vertex()
+                held.set()
+                release.wait(HUNG)
+            done.append(other.mesh("m").revision)
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    try:
+        assert held.wait(HUNG)
+        # No wait at all: the lock is held, so the undo gives up at once and changes nothing.
+        code, out, err = run(capsys, "--db", db_url, "--busy-timeout", "0", "undo", "m")
+        assert_one_line_error(code, out, err)
+        assert "another writer holds the lock" in err, err
+        # A wait far longer than the holder takes: the undo waits for it, then goes through.
+        threading.Timer(0.2, release.set).start()
+        code, out, err = run(capsys, "--db", db_url, "--busy-timeout", str(HUNG), "undo", "m")
+        assert code == 0, err
+    finally:
+        release.set()
+        holder.join(HUNG)
+    assert done == [3]
+    assert out.startswith("m: undo of revision 3: now revision 4"), out
+    with hestore.open(db_url) as store:
+        assert store.mesh("m").counts().vertices == 2
+
+
+@pytest.mark.parametrize("seconds", ["-1", "nan", "inf"])
+def test_busy_timeout_must_be_seconds(capsys, url, seconds):
+    assert run(capsys, "--db", url, "demo")[0] == 0
+    code, out, err = run(capsys, "--db", url, "--busy-timeout", seconds, "list")
+    assert_one_line_error(code, out, err)
+    assert "busy_timeout" in err or "--busy-timeout" in err, err
+
+
+def test_busy_timeout_is_in_the_help(capsys):
+    code, out, _ = run(capsys, "--help")
+    out = " ".join(out.split())  # argparse wraps the help to the terminal's width
+    assert code == 0 and "--busy-timeout SECONDS" in out and "(default 5)" in out
 
 
 def test_an_unexpected_error_is_one_line_too(capsys, url, monkeypatch):

@@ -335,6 +335,22 @@ def test_bad_paths_write_nothing(store, out):
     assert sorted(os.listdir(out)) == ["folder.png"]
 
 
+@pytest.mark.parametrize("size", [(10_001, 10), (10, 10_001), (100_000, 100_000), (7_000, 7_000), (40_001, 1_000)])
+def test_a_picture_too_large_is_refused_before_anything_is_drawn(store, out, monkeypatch, size):
+    mesh = pyramid(store)
+    # Refused before the mesh is read or a figure made: nothing of the size is ever allocated.
+    monkeypatch.setattr(rendering, "_draw", lambda *a, **k: pytest.fail("the picture was drawn"))
+    with pytest.raises(hestore.InvalidInputError, match=r"each side 1 to 10,000 pixels and at most 40,000,000"):
+        mesh.render(out / "p.png", size=size)
+    assert os.listdir(out) == []
+    assert rendering.MAX_SIDE == 10_000 and rendering.MAX_PIXELS == 40_000_000
+
+
+def test_the_largest_picture_is_in_the_help(capsys):
+    assert main(["render", "--help"]) == 0
+    assert "each side at most 10,000 and 40,000,000 pixels in all" in " ".join(capsys.readouterr().out.split())
+
+
 def test_unwritable_folder(store, out):
     mesh = pyramid(store)
     locked = out / "locked"
@@ -419,6 +435,9 @@ def test_cli_render(cli_db, out, capsys):
         (["render", "nosuchmesh", "{out}/p.png"], "nosuchmesh"),
         (["render", "pyramid", "{out}/p.png", "--revision", "7"], "no revision 7"),
         (["render", "pyramid", "{out}/p.png", "--view", "sideways"], "unknown view"),
+        (["render", "pyramid", "{out}/p.png", "--size", "100000x100000"], "each side 1 to 10,000 pixels"),
+        (["render", "pyramid", "{out}/p.png", "--size", "10001x10"], "each side 1 to 10,000 pixels"),
+        (["render", "pyramid", "{out}/p.png", "--size", "8000x6000"], "at most 40,000,000 pixels"),
     ],
 )
 def test_cli_errors_are_one_line(cli_db, out, capsys, argv, message):

@@ -56,6 +56,7 @@ session layer holds it.
 
 from __future__ import annotations
 
+import os
 import weakref
 from contextlib import contextmanager
 from threading import get_ident
@@ -76,6 +77,7 @@ from hestore.errors import (
     RevisionNotFoundError,
     SchemaVersionError,
     StoreError,
+    StoreNotFoundError,
     WrongThreadError,
 )
 from hestore._persistence import Persistence
@@ -223,12 +225,18 @@ class Session:
         A URL `hestore.urls.resolve` accepted.
     busy_timeout : float
         Seconds to wait for another writer's lock before `StoreBusyError`.
+    create : bool
+        Whether a database without hestore's tables gets them (a SQLite file
+        that does not exist is created). Without, it is `StoreNotFoundError`.
 
     Raises
     ------
     StoreError
         The database cannot be opened or used (not a database, unreachable,
         tables of another application in the way, driver not installed).
+    StoreNotFoundError
+        Without ``create``: the SQLite file does not exist, or the database
+        has no hestore tables.
     SchemaVersionError
         The database needs ``hestore db upgrade`` (or a newer hestore).
 
@@ -242,9 +250,15 @@ class Session:
     >>> session.close()
     """
 
-    def __init__(self, url: sa.engine.URL, *, busy_timeout: float) -> None:
+    def __init__(self, url: sa.engine.URL, *, busy_timeout: float, create: bool = True) -> None:
         self.url = url
         self.shown_url = urls.shown(url)
+        path = urls.sqlite_path(url)
+        if not create and path is not None and not os.path.exists(path):
+            # Before connecting: SQLite creates a missing file when it opens it.
+            raise StoreNotFoundError(
+                f"no database at {self.shown_url}: the file {os.path.abspath(path)} does not exist"
+            )
         self.busy_timeout = float(busy_timeout)
         self.is_sqlite = url.get_backend_name() == "sqlite"
         self.is_memory = urls.is_memory(url)
@@ -282,7 +296,7 @@ class Session:
         self._prepared = self._db.compiled
         self._persistence = Persistence(self._db)
         try:
-            self._ensure_schema()
+            self._ensure_schema(create)
         except BaseException:
             self.close()
             raise
@@ -440,9 +454,13 @@ class Session:
         self._changed.clear()
         self._failed = False
 
-    def _ensure_schema(self) -> None:
+    def _ensure_schema(self, create: bool) -> None:
         with self._guard(f"cannot read the schema of {self.shown_url}"):
             state = migrate.schema_state(self._conn)
+        if state.status == "new" and not create:
+            raise StoreNotFoundError(
+                f"{self.shown_url} has no hestore tables: it is an empty database, and nothing was created in it"
+            )
         if state.status == "new":
             with self.scope(), self._guard(f"cannot create hestore's tables in {self.shown_url}"):
                 migrate.upgrade(self._conn)

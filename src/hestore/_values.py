@@ -61,6 +61,7 @@ from hestore.errors import InvalidInputError, RevisionNotFoundError, shown
 
 __all__ = [
     "check_real",
+    "check_seconds",
     "check_integer",
     "check_revision",
     "check_flag",
@@ -161,6 +162,29 @@ def check_real(value: object, what: str) -> float:
         raise InvalidInputError(f"{what} is beyond the float64 range: {shown(value)}") from None
     except Exception as exc:  # noqa: BLE001 - the caller's __float__ may raise anything
         raise _failed(what, value, exc) from exc
+
+
+def check_seconds(value: object, what: str) -> float:
+    """``value`` as a time to wait, in seconds: a real number, finite and ≥ 0 (`check_real`).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a real number, negative, NaN or infinite.
+
+    Examples
+    --------
+    >>> check_seconds(2, "busy_timeout")
+    2.0
+    >>> check_seconds(-1, "busy_timeout")
+    Traceback (most recent call last):
+    ...
+    hestore.errors.InvalidInputError: busy_timeout must be a number of seconds ≥ 0, not -1
+    """
+    seconds = check_real(value, f"{what} (seconds)")
+    if not 0 <= seconds < math.inf:
+        raise InvalidInputError(f"{what} must be a number of seconds ≥ 0, not {shown(value)}")
+    return seconds
 
 
 def check_integer(value: object, what: str) -> int:

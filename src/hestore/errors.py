@@ -25,6 +25,7 @@ Hierarchy::
     ├── InvariantViolationError              `Mesh.validate` found violations
     ├── StoreError                           the database itself: unreadable, read-only, ...
     │   ├── StoreBusyError                   a lock could not be had in time
+    │   ├── StoreNotFoundError               ``open(..., create=False)``: no hestore database there
     │   └── SchemaVersionError               the database needs ``hestore db upgrade``
     └── WrongThreadError                     a store used from a thread that did not open it
 
@@ -64,6 +65,7 @@ __all__ = [
     "InvariantViolationError",
     "StoreError",
     "StoreBusyError",
+    "StoreNotFoundError",
     "SchemaVersionError",
     "WrongThreadError",
     "Violation",
@@ -385,6 +387,15 @@ class StoreBusyError(StoreError):
     The call that raised it changed nothing. Outside a transaction block it is
     safe to retry; inside one, the block may go on (the lock is taken in a
     savepoint), but a deadlock between two blocks aborts the whole block.
+    """
+
+
+class StoreNotFoundError(StoreError):
+    """``hestore.open(url, create=False)`` found no hestore database to open.
+
+    A SQLite file that does not exist (it is not created), or a database
+    without hestore's tables: an empty file, an in-memory database, a new
+    PostgreSQL database (no tables are created). Nothing was changed.
     """
 
 

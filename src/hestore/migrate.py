@@ -34,6 +34,7 @@ import sqlalchemy as sa
 
 from hestore import schema, urls
 from hestore import _drivers as drivers
+from hestore import _values as values
 from hestore.errors import SchemaVersionError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -373,15 +374,17 @@ def schema_state(connection: sa.Connection) -> SchemaState:
     return SchemaState(current, head, "behind" if current in revisions() else "ahead")
 
 
-def database_state(url: str | sa.engine.URL | None) -> SchemaState:
+def database_state(url: str | sa.engine.URL | None, *, busy_timeout: float = 5.0) -> SchemaState:
     """Where the database at ``url`` stands, without changing anything (``hestore db current``).
 
     A SQLite file that does not exist yet is ``"new"`` and is not created.
+    ``busy_timeout`` is as for `hestore.open`.
 
     Raises
     ------
     InvalidInputError
-        ``url`` is not a database hestore supports.
+        ``url`` is not a database hestore supports, or ``busy_timeout`` is not
+        a finite number of seconds ≥ 0.
     StoreError
         The database cannot be read.
 
@@ -392,11 +395,12 @@ def database_state(url: str | sa.engine.URL | None) -> SchemaState:
     >>> database_state(path).status, os.path.exists(path)
     ('new', False)
     """
+    seconds = values.check_seconds(busy_timeout, "busy_timeout")
     url = urls.resolve(url)
     path = urls.sqlite_path(url)
     if path is not None and not Path(path).exists():
         return SchemaState(None, head_revision(), "new")
-    engine = drivers.make_engine(url, busy_timeout=5.0, pooled=False, autocommit=False)
+    engine = drivers.make_engine(url, busy_timeout=seconds, pooled=False, autocommit=False)
     try:
         with drivers.guard(f"cannot read {urls.shown(url)}", urls.shown(url)), engine.connect() as conn:
             return schema_state(conn)
@@ -404,8 +408,10 @@ def database_state(url: str | sa.engine.URL | None) -> SchemaState:
         engine.dispose()
 
 
-def upgrade_database(url: str | sa.engine.URL | None) -> tuple[SchemaState, SchemaState]:
+def upgrade_database(url: str | sa.engine.URL | None, *, busy_timeout: float = 5.0) -> tuple[SchemaState, SchemaState]:
     """Bring the database at ``url`` to head, creating it if new (``hestore db upgrade``).
+
+    ``busy_timeout`` is how long to wait for another writer's lock, as for `hestore.open`.
 
     Returns
     -------
@@ -414,6 +420,9 @@ def upgrade_database(url: str | sa.engine.URL | None) -> tuple[SchemaState, Sche
 
     Raises
     ------
+    InvalidInputError
+        ``url`` is not a database hestore supports, or ``busy_timeout`` is not
+        a finite number of seconds ≥ 0.
     SchemaVersionError
         Tables hestore did not create are in the way, or a newer hestore
         wrote the database: nothing is changed.
@@ -427,9 +436,10 @@ def upgrade_database(url: str | sa.engine.URL | None) -> tuple[SchemaState, Sche
     >>> before.status, after.status
     ('new', 'head')
     """
+    seconds = values.check_seconds(busy_timeout, "busy_timeout")
     url = urls.resolve(url)
     shown = urls.shown(url)
-    engine = drivers.make_engine(url, busy_timeout=5.0, pooled=False, autocommit=False)
+    engine = drivers.make_engine(url, busy_timeout=seconds, pooled=False, autocommit=False)
     try:
         with drivers.guard(f"cannot upgrade {shown}", shown), engine.connect() as conn:
             before = schema_state(conn)

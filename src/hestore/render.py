@@ -69,8 +69,8 @@ from hestore._values import check_choice, check_flag, check_integer, check_items
 from hestore._session import MeshRef
 
 __all__ = [
-    "VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "MAX_SIDE", "DPI", "LABEL_VERTICES", "LAYERS", "plot",
-    "render",
+    "VIEWS", "FORMATS", "MAX_POLYGONS", "CHECK_POLYGONS", "MAX_SIDE", "MAX_PIXELS", "DPI", "LABEL_VERTICES", "LAYERS",
+    "plot", "render",
 ]
 
 #: Named views: the direction from the mesh towards the viewer.
@@ -94,7 +94,11 @@ MAX_POLYGONS = 200_000
 CHECK_POLYGONS = 200_000
 
 #: The longest side of a picture `render` draws, in pixels.
-MAX_SIDE = 16_384
+MAX_SIDE = 10_000
+
+#: The most pixels a picture `render` draws has (40 Mpx: 160 MB of RGBA for matplotlib to draw into, and
+#: several times that while it encodes a PNG), refused before anything is drawn or allocated.
+MAX_PIXELS = 40_000_000
 
 #: The dots per inch `render` takes, least and most: below, matplotlib cannot draw small text.
 DPI = (10, 10_000)
@@ -672,13 +676,19 @@ def _format(path: str) -> str:
 
 
 def _pixels(size: object, dpi: object) -> tuple[int, int, int]:
-    """``(width, height, dpi)`` checked: whole pixels, and a dpi at which matplotlib can draw text."""
+    """``(width, height, dpi)`` checked: whole pixels, at most `MAX_SIDE` a side and `MAX_PIXELS` in all, and a
+    dpi at which matplotlib can draw text."""
     sides = [check_integer(side, "a side of size") for side in check_items(size, "size is (width, height) in pixels")]
     dots = check_integer(dpi, "dpi")
-    if len(sides) != 2 or not all(1 <= side <= MAX_SIDE for side in sides) or not DPI[0] <= dots <= DPI[1]:
+    if (
+        len(sides) != 2
+        or not all(1 <= side <= MAX_SIDE for side in sides)
+        or sides[0] * sides[1] > MAX_PIXELS
+        or not DPI[0] <= dots <= DPI[1]
+    ):
         raise InvalidInputError(
-            f"size must be (width, height) with each side 1 to {MAX_SIDE:,} pixels, and dpi {DPI[0]} to "
-            f"{DPI[1]:,}; not size={shown(size)}, dpi={shown(dpi)}"
+            f"size must be (width, height) with each side 1 to {MAX_SIDE:,} pixels and at most {MAX_PIXELS:,} "
+            f"pixels in all, and dpi {DPI[0]} to {DPI[1]:,}; not size={shown(size)}, dpi={shown(dpi)}"
         )
     return sides[0], sides[1], dots
 
@@ -711,7 +721,8 @@ def render(
     path : str or os.PathLike
         Ends in ``.png`` or ``.svg``; its folder must exist.
     size : (int, int)
-        Width and height in pixels (at ``dpi``), each 1 to `MAX_SIDE`.
+        Width and height in pixels (at ``dpi``), each 1 to `MAX_SIDE` (10,000), and at most `MAX_PIXELS`
+        (40,000,000) in all.
     dpi : int
         Dots per inch of the figure, within `DPI`.
     title : bool

@@ -14,27 +14,31 @@ A store belongs to the thread that opened it: open one per thread or process.
 from __future__ import annotations
 
 import dataclasses
-import math
 from contextlib import contextmanager
 from typing import Iterator
 
 from hestore import bulk, interop, schema, urls
 from hestore import _values as values
 from hestore import io as mesh_io
-from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError, shown
+from hestore.errors import MeshExistsError, MeshNotFoundError
 from hestore._journal import created_changes
 from hestore.mesh import Mesh
 from hestore._queries import catalogue
 from hestore._session import Session, identity
 
-__all__ = ["open", "Store", "DEFAULT_URL"]
+__all__ = ["open", "Store", "DEFAULT_URL", "DEFAULT_BUSY_TIMEOUT"]
 
 #: Where `open` goes when given no URL and ``$HESTORE_URL`` is unset.
 DEFAULT_URL = urls.DEFAULT_URL
 
+#: Seconds `open`'s store waits for another writer's lock, unless told otherwise.
+DEFAULT_BUSY_TIMEOUT = 5.0
 
-def open(url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> "Store":
-    """Open (and if new, create) a hestore database.
+
+def open(
+    url: str | urls.URL | None = None, *, busy_timeout: float = DEFAULT_BUSY_TIMEOUT, create: bool = True
+) -> "Store":
+    """Open (and if new and ``create``, create) a hestore database.
 
     Parameters
     ----------
@@ -45,7 +49,17 @@ def open(url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> "St
         ``$HESTORE_URL``, else ``./hestore.db``.
     busy_timeout : float
         Seconds to wait for another writer's lock before `StoreBusyError`
-        (PostgreSQL waits at most about 24.8 days, its longest lock timeout).
+        (PostgreSQL waits at most about 24.8 days, its longest lock timeout):
+        every write waits that long for another connection's transaction to
+        end. Default `DEFAULT_BUSY_TIMEOUT`, 5 seconds.
+    create : bool
+        Whether to make the database if there is none: a SQLite file that
+        does not exist is created, a database without hestore's tables
+        (an empty file, a new PostgreSQL database, an in-memory one) gets
+        them, at the current schema. With ``create=False`` those are
+        `StoreNotFoundError` and nothing is created: for code that only
+        means to read what is there (the command line's commands but
+        ``import``, ``demo`` and ``db upgrade``).
 
     Returns
     -------
@@ -57,6 +71,9 @@ def open(url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> "St
         Not a URL or a path, a database hestore does not support
         (`hestore.urls`), or a ``busy_timeout`` that is not a finite number
         of seconds ≥ 0.
+    StoreNotFoundError
+        With ``create=False``: the SQLite file does not exist, or the
+        database has no hestore tables.
     StoreError
         The database cannot be opened or used: not a database, unreachable,
         tables of another application in the way, driver not installed.
@@ -71,8 +88,12 @@ def open(url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> "St
     >>> store.meshes()
     []
     >>> store.close()
+    >>> hestore.open("no/such/meshes.db", create=False)
+    Traceback (most recent call last):
+    ...
+    hestore.errors.StoreNotFoundError: no database at sqlite:///no/such/meshes.db: the file ... does not exist
     """
-    return Store(url, busy_timeout=busy_timeout)
+    return Store(url, busy_timeout=busy_timeout, create=create)
 
 
 def _checked_name(name: object) -> str:
@@ -96,13 +117,14 @@ class Store:
         module of hestore reads and writes through.
     """
 
-    def __init__(self, url: str | urls.URL | None = None, *, busy_timeout: float = 5.0) -> None:
-        seconds = values.check_real(busy_timeout, "busy_timeout (seconds)")
-        if not 0 <= seconds < math.inf:
-            raise InvalidInputError(f"busy_timeout must be a number of seconds ≥ 0, not {shown(busy_timeout)}")
+    def __init__(
+        self, url: str | urls.URL | None = None, *, busy_timeout: float = DEFAULT_BUSY_TIMEOUT, create: bool = True
+    ) -> None:
+        seconds = values.check_seconds(busy_timeout, "busy_timeout")
+        create = values.check_flag(create, "create")
         self.url = urls.resolve(url)
         self.busy_timeout = seconds
-        self.session = Session(self.url, busy_timeout=self.busy_timeout)
+        self.session = Session(self.url, busy_timeout=self.busy_timeout, create=create)
 
     def __repr__(self) -> str:
         return f"Store({self.session.shown_url!r})"

@@ -14,8 +14,10 @@ write instead:
 * ``postgresql://`` means ``postgresql+psycopg://`` (psycopg 3, the driver
   hestore's bulk paths use); ``postgres://`` (Heroku's spelling, which
   SQLAlchemy does not accept) is refused with that hint;
-* any other database or driver (``mysql://``, ``postgresql+psycopg2://``) is
-  refused in one line, before a driver is imported;
+* any other database or driver (``mysql://``, ``postgresql+psycopg2://``,
+  ``http://``, a misspelling such as ``postgresq://``, which gets a
+  suggestion) is refused in one line, read from the URL's text: no dialect
+  or driver is looked up, so none of SQLAlchemy's errors can escape;
 * a path is a str, bytes or `os.PathLike` with no NUL character, that the
   file system's encoding can write (no lone surrogates): anything else is
   refused naming it, before a file is touched.
@@ -53,7 +55,10 @@ ENVIRONMENT = "HESTORE_URL"
 #: Drivers hestore runs on, per backend; the first is what a bare backend name means.
 SUPPORTED = {"sqlite": ("pysqlite",), "postgresql": ("psycopg",)}
 
-_EXAMPLES = "sqlite:///path/to/meshes.db, a bare file path, or postgresql+psycopg://user@host/dbname"
+#: How to write a URL of each backend, for messages.
+_SPELLINGS = {"sqlite": "sqlite:///path/to/meshes.db or a bare file path", "postgresql": "postgresql+psycopg://user@host/dbname"}
+
+_EXAMPLES = f"{_SPELLINGS['sqlite']}, or {_SPELLINGS['postgresql']}"
 
 
 def resolve(url: str | sa.engine.URL | None = None) -> sa.engine.URL:
@@ -117,22 +122,31 @@ def resolve(url: str | sa.engine.URL | None = None) -> sa.engine.URL:
         parsed = url
     else:
         raise InvalidInputError(f"a database URL is a string or a sqlalchemy URL, not {type(url).__name__}")
-    backend, driver = parsed.get_backend_name(), parsed.get_driver_name()
+    # From the text, not get_driver_name(): that loads the dialect, and an unknown one raises SQLAlchemy's error.
+    backend, plus, driver = parsed.drivername.partition("+")
     if backend not in SUPPORTED:
         raise InvalidInputError(
-            f"unsupported database {backend!r} in {shown(parsed)!r}: hestore stores meshes in SQLite or "
-            f"PostgreSQL; use {_EXAMPLES}"
+            f"unsupported database {backend!r} in {shown(parsed)!r}{_suggestion(backend)}: hestore stores meshes in "
+            f"SQLite or PostgreSQL; use {_EXAMPLES}"
         )
     drivers = SUPPORTED[backend]
-    if "+" not in parsed.drivername:
+    if not plus:
         # SQLAlchemy's default SQLite driver is the one; its PostgreSQL default is not.
         return parsed if backend == "sqlite" else parsed.set(drivername=f"{backend}+{drivers[0]}")
     if driver not in drivers:
         raise InvalidInputError(
             f"unsupported driver {driver!r} in {shown(parsed)!r}: hestore runs {backend} through "
-            f"{' or '.join(drivers)}; write {backend}+{drivers[0]}://..."
+            f"{' or '.join(drivers)}; use {_SPELLINGS[backend]}"
         )
     return parsed
+
+
+def _suggestion(backend: str) -> str:
+    """``" (did you mean postgresql?)"`` for a near miss of a supported backend's name, else nothing."""
+    import difflib  # only on this error path
+
+    close = difflib.get_close_matches(backend.lower(), SUPPORTED, n=1, cutoff=0.6)
+    return f" (did you mean {close[0]}?)" if close else ""
 
 
 def check_path(path: object, what: str = "a file path") -> str:

@@ -1,9 +1,13 @@
 """The ``hestore`` command line.
 
-``hestore [--db URL] COMMAND`` — the database is ``--db``, else
+``hestore [--db URL] [--busy-timeout SECONDS] COMMAND`` — the database is ``--db``, else
 ``$HESTORE_URL``, else ``./hestore.db`` (a bare path means a SQLite file).
-This package is the console script ``hestore`` (``hestore.cli:main``) and
-``python -m hestore``. `main` parses (`hestore.cli.parser`: a table of
+Only ``import``, ``demo`` and ``db upgrade`` create a database that does not
+exist; every other command says there is none, naming the file
+(`hestore.open` with ``create=False``). ``--busy-timeout`` is how long a
+command waits for another writer's lock (`hestore.open`'s ``busy_timeout``).
+The console script ``hestore`` and ``python -m hestore`` are
+`hestore.__main__`, which calls `main` here. `main` parses (`hestore.cli.parser`: a table of
 commands, each with its handler), runs the command's handler
 (`hestore.cli.commands`: each calls the library and prints, through
 `hestore.cli.text`), and turns every error a user can cause (hestore's own,
@@ -27,7 +31,7 @@ on one line) are local queries (`hestore.Mesh.shortest_path` and `hestore.Mesh.p
 ``degree-histogram`` and ``export`` go through networkx (`hestore.Mesh.to_networkx`).
 
 Exit status: 0 success, 1 ``check`` found violations or ``graph … path``
-found no path, 2 error, 130 interrupted.
+found no path, 2 error, 130 interrupted (`hestore.__main__`).
 
 ``import``, ``export``, ``render``, and ``check``, ``info`` and the whole-graph ``graph`` commands when
 they take over a second (large meshes), report progress through `hestore.progress.ProgressBar`, on
@@ -41,8 +45,10 @@ below the store (`hestore.open` refuses a database whose schema is behind;
 that refusal is what tells users to run ``hestore db upgrade``): they call
 `hestore.migrate.database_state` and `hestore.migrate.upgrade_database`.
 
-Ctrl-C stops any command with one line and exit status 130; its writes,
-one transaction, are rolled back. An unexpected error is one line too
+Ctrl-C raises `KeyboardInterrupt` in `main`, which lets it through: the
+command's writes, one transaction, roll back on the way out, and the entry
+point (`hestore.__main__`, which also covers the imports before `main` runs)
+turns it into one line and exit status 130. An unexpected error is one line
 (``HESTORE_DEBUG=1`` shows its traceback).
 """
 
@@ -81,6 +87,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         found no path, 2 error
         (reported as one line on stderr, never a traceback).
 
+    Raises
+    ------
+    KeyboardInterrupt
+        Ctrl-C, after the command's transaction rolled back: `hestore.__main__`
+        makes it one line and exit status 130.
+
     Examples
     --------
     >>> import tempfile
@@ -103,10 +115,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         status = args.func(args)
         sys.stdout.flush()
         return status
-    except KeyboardInterrupt:
-        # Every command's writes are one transaction, rolled back on the way out.
-        print("hestore: interrupted; the unfinished command changed nothing", file=sys.stderr)
-        return 130
     except BrokenPipeError:
         # The reader went away (`hestore list | head`): stop quietly with the
         # status of a process killed by SIGPIPE, as other command-line tools do,

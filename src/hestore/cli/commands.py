@@ -26,7 +26,7 @@ from hestore import migrate, urls
 from hestore.bulk import name_of
 from hestore.cli import text
 from hestore.errors import HestoreError, InvalidInputError, MeshExistsError, NoPathError, PolicyError
-from hestore.errors import PropertyNotFoundError
+from hestore.errors import PropertyNotFoundError, StoreNotFoundError
 from hestore.progress import ProgressBar
 
 __all__ = ["IMPORT_UNITS", "EXPORT_UNITS", "QUIET_SECONDS"]  # and a cmd_* function per command
@@ -40,8 +40,15 @@ EXPORT_UNITS = {"write": "rows"}
 QUIET_SECONDS = 1.0
 
 
-def _open(args: argparse.Namespace) -> hestore.Store:
-    return hestore.open(args.db)
+def _open(args: argparse.Namespace, create: bool = False) -> hestore.Store:
+    """The store of ``--db``; a database that does not exist is made only by a command that can start from
+    nothing (``create``: ``import``, ``demo``), so that a mistyped name is never a new, empty database."""
+    try:
+        return hestore.open(args.db, busy_timeout=args.busy_timeout, create=create)
+    except StoreNotFoundError as exc:
+        raise StoreNotFoundError(
+            f"{exc}; only `hestore import FILE`, `hestore demo` and `hestore db upgrade` create a database"
+        ) from None
 
 
 def _print(lines: list[str]) -> None:
@@ -55,7 +62,7 @@ def _print(lines: list[str]) -> None:
 def cmd_demo(args: argparse.Namespace) -> int:
     from hestore.cli import demo
 
-    with _open(args) as store:
+    with _open(args, create=True) as store:
         demo.run(store)
     return 0
 
@@ -79,7 +86,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_import(args: argparse.Namespace) -> int:
     path = args.file
-    with _open(args) as store:
+    with _open(args, create=True) as store:
         name = args.name if args.name is not None else name_of(path)
         replacing = args.replace and name in store.meshes()
         try:
@@ -328,7 +335,7 @@ def cmd_graph_export(args: argparse.Namespace) -> int:
 
 
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
-    before, after = migrate.upgrade_database(args.db)
+    before, after = migrate.upgrade_database(args.db, busy_timeout=args.busy_timeout)
     shown = urls.shown(urls.resolve(args.db))
     if before.status == "head":
         print(f"{shown}: already at head ({after.head})")
@@ -339,5 +346,5 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
 
 
 def cmd_db_current(args: argparse.Namespace) -> int:
-    print(migrate.database_state(args.db).describe())
+    print(migrate.database_state(args.db, busy_timeout=args.busy_timeout).describe())
     return 0

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import hestore
 from hestore.cli import commands
 from hestore.cli.text import TOP_COMPONENTS
-from hestore.render import CHECK_POLYGONS, LABEL_VERTICES, MAX_POLYGONS, VIEWS
+from hestore.render import CHECK_POLYGONS, LABEL_VERTICES, MAX_PIXELS, MAX_POLYGONS, MAX_SIDE, VIEWS
+from hestore.store import DEFAULT_BUSY_TIMEOUT
 from hestore.traversal import KINDS as GRAPH_KINDS
 
 __all__ = ["Arg", "Command", "COMMANDS", "build_parser"]
@@ -249,7 +250,8 @@ COMMANDS = (
                 f"{CHECK_POLYGONS:,} polygons)",
             ),
             arg("--size", metavar="WxH", type=_pixels, default=(1200, 900),
-                help="picture size in pixels (default 1200x900)"),
+                help=f"picture size in pixels (default 1200x900; each side at most {MAX_SIDE:,} and "
+                f"{MAX_PIXELS:,} pixels in all)"),
         ),
         "Draw a mesh to FILE, a PNG or SVG picture by its extension, replacing the file if it "
         "exists (written whole or not at all): polygons flat-shaded, edges thin, boundary loops as coloured "
@@ -355,7 +357,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hestore",
         description="A persistent, transactional half-edge topology store.",
-        epilog="The database is --db, else $HESTORE_URL, else ./hestore.db.",
+        epilog="The database is --db, else $HESTORE_URL, else ./hestore.db. Only import, demo and db upgrade "
+        "create it when there is none; every other command says so.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {hestore.__version__}")
     parser.add_argument(
@@ -363,6 +366,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="URL",
         help="SQLAlchemy database URL, e.g. sqlite:///meshes.db or postgresql+psycopg://user@host/db "
         "(a bare path means a SQLite file)",
+    )
+    parser.add_argument(
+        "--busy-timeout",
+        metavar="SECONDS",
+        type=float,
+        default=DEFAULT_BUSY_TIMEOUT,
+        help="how long a command waits for another writer's lock (another process importing into or editing "
+        f"the same database) before it gives up, changing nothing (default {DEFAULT_BUSY_TIMEOUT:g})",
     )
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for command in COMMANDS:
