@@ -56,7 +56,10 @@ ENVIRONMENT = "HESTORE_URL"
 SUPPORTED = {"sqlite": ("pysqlite",), "postgresql": ("psycopg",)}
 
 #: How to write a URL of each backend, for messages.
-_SPELLINGS = {"sqlite": "sqlite:///path/to/meshes.db or a bare file path", "postgresql": "postgresql+psycopg://user@host/dbname"}
+_SPELLINGS = {
+    "sqlite": "sqlite:///path/to/meshes.db or a bare file path",
+    "postgresql": "postgresql+psycopg://user@host/dbname",
+}
 
 _EXAMPLES = f"{_SPELLINGS['sqlite']}, or {_SPELLINGS['postgresql']}"
 
