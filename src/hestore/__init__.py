@@ -129,6 +129,7 @@ if TYPE_CHECKING:
         WrongThreadError,
     )
 
+
 def __getattr__(name: str):
     """A public name, imported from its module on first use; or a module of the package (``hestore.bulk``)."""
     import importlib
