@@ -15,6 +15,7 @@ import sqlalchemy as sa
 import hestore
 from hestore import schema
 from hestore.errors import (
+    HestoreError,
     InvalidInputError,
     MeshExistsError,
     MeshNotFoundError,
@@ -376,3 +377,42 @@ def test_separate_rolled_back_with_its_block(store):
             assert mesh.stats().pinched_vertices == 0
             raise RuntimeError
     assert dump(store) == before and mesh.stats().pinched_vertices == 1
+
+
+# -- the store as a mapping of names to meshes ---------------------------------------------------
+
+
+def test_the_store_reads_like_a_mapping_of_names_to_meshes(store):
+    assert len(store) == 0 and list(store) == [] and "a" not in store
+    for name in ("b", "a", "c"):
+        store.create_mesh(name)
+    assert len(store) == 3 and list(store) == ["a", "b", "c"] == sorted(store)
+    assert "a" in store and "z" not in store
+    assert store["b"] == store.mesh("b") and store["b"].name == "b"
+    with pytest.raises(KeyError):  # a MeshNotFoundError, as a dict's missing key
+        store["z"]
+    with pytest.raises(MeshNotFoundError, match="no mesh named 'z'"):
+        store["z"]
+    # Anything that cannot be a mesh name is simply not in the store, as with a dict's keys.
+    for other in (None, 3, b"a", ("a",), "", "a\x00"):
+        assert other not in store
+    with pytest.raises(InvalidInputError):
+        store[3]
+    with store.transaction():
+        store.create_mesh("d")
+        assert "d" in store and len(store) == 4  # the block's own, uncommitted mesh
+        store.delete_mesh("a")
+        assert "a" not in store and list(store) == ["b", "c", "d"]
+    store.rename_mesh("b", "e")
+    assert "b" not in store and "e" in store and dict.fromkeys(store) == dict.fromkeys(["c", "d", "e"])
+
+
+def test_the_mapping_of_a_closed_store_refuses_like_its_methods(store):
+    store.create_mesh("a")
+    store.close()
+    with pytest.raises(HestoreError, match="is closed") as method:
+        store.meshes()
+    for probe in (lambda: "a" in store, lambda: store["a"], lambda: len(store), lambda: list(store)):
+        with pytest.raises(HestoreError) as mapping:
+            probe()
+        assert (type(mapping.value), str(mapping.value)) == (type(method.value), str(method.value))

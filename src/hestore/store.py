@@ -20,7 +20,7 @@ from typing import Iterator
 from hestore import bulk, interop, schema, urls
 from hestore import _values as values
 from hestore import io as mesh_io
-from hestore.errors import MeshExistsError, MeshNotFoundError
+from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError
 from hestore._journal import created_changes
 from hestore.mesh import Mesh
 from hestore._queries import catalogue
@@ -115,6 +115,29 @@ class Store:
     session : hestore._session.Session
         The connection, transactions and units of work: the door every
         module of hestore reads and writes through.
+
+    Notes
+    -----
+    A store reads like a mapping of names to meshes, as a networkx graph
+    reads like one of nodes to neighbours: ``name in store``,
+    ``store[name]`` (`mesh`; a missing name is `MeshNotFoundError`, a
+    `KeyError`), ``len(store)`` and ``for name in store`` (`meshes`, sorted).
+    It is not written through that mapping: `create_mesh`, `delete_mesh`
+    and `rename_mesh` say what they do.
+
+    Examples
+    --------
+    >>> import hestore
+    >>> store = hestore.open("sqlite://")
+    >>> _ = store.create_mesh("cube"); _ = store.create_mesh("cow")
+    >>> "cow" in store, "horse" in store, len(store), list(store)
+    (True, False, 2, ['cow', 'cube'])
+    >>> store["cow"].name
+    'cow'
+    >>> store["horse"]
+    Traceback (most recent call last):
+    ...
+    hestore.errors.MeshNotFoundError: no mesh named 'horse' in sqlite://; meshes here: cow, cube
     """
 
     def __init__(
@@ -254,6 +277,27 @@ class Store:
             hint = f"; meshes here: {', '.join(known[:10])}" if known else "; the store has no meshes"
             raise MeshNotFoundError(f"no mesh named {name!r} in {self.session.shown_url}{hint}")
         return Mesh(self, self.session.ref(entry.id, name, entry.allow_loops, entry.allow_multi_edges))
+
+    def __contains__(self, name: object) -> bool:
+        """Whether a mesh is called ``name`` (False for anything that cannot be a mesh name)."""
+        try:
+            name = _checked_name(name)
+        except InvalidInputError:
+            return False
+        with self.session.querying() as db:
+            return catalogue.find(db, name) is not None
+
+    def __getitem__(self, name: str) -> Mesh:
+        """The mesh called ``name``: `mesh`."""
+        return self.mesh(name)
+
+    def __len__(self) -> int:
+        """How many meshes the store holds."""
+        return len(self.meshes())
+
+    def __iter__(self) -> Iterator[str]:
+        """The meshes' names, sorted, as they were when iteration began: `meshes`."""
+        return iter(self.meshes())
 
     def meshes(self) -> list[str]:
         """Names of all meshes, sorted.
