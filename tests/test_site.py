@@ -240,3 +240,29 @@ def test_layer_picture_refuses_a_contract_it_cannot_place(fake):
     (fake / "pyproject.toml").write_text(text, encoding="utf-8")
     with pytest.raises(ValueError, match="pkg.elsewhere"):
         _layers().draw(fake / "pkg", fake / "pyproject.toml")
+
+
+def _guide_pages() -> list[str]:
+    """The pages of mkdocs.yml's Guide and Contributing sections (a line ``- Title: page.md`` each)."""
+    text = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    sections = re.split(r"^  - ", text.split("\nnav:\n", 1)[1], flags=re.M)
+    wanted = [s for s in sections if s.startswith(("Guide:", "Contributing:"))]
+    return [page for s in wanted for page in re.findall(r":\s*([\w-]+\.md)\s*$", s, re.M)]
+
+
+def test_the_home_page_links_every_guide_page():
+    pages = _guide_pages()
+    assert {"api.md", "history.md", "repair.md", "coming-from.md", "architecture.md"} <= set(pages), pages
+    home = (DOCS / "index.md").read_text(encoding="utf-8")
+    missing = [page for page in pages if f"]({page})" not in home]
+    assert not missing, f"docs/index.md does not link {missing}"
+
+
+def test_the_readme_lists_every_command():
+    from hestore.cli.parser import COMMANDS
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("## Command line", 1)[1].split("```", 2)[1]
+    listed = set(re.findall(r"^hestore (?:\[--db URL\] )?([a-z-]+)", block, re.M))
+    missing = [c.name for c in COMMANDS if c.name not in listed]
+    assert not missing, f"README.md's command list leaves out {missing}"
