@@ -33,11 +33,16 @@ from sqlalchemy.pool import NullPool, StaticPool
 from hestore import urls
 from hestore.errors import HestoreError, StoreBusyError, StoreError
 
-__all__ = ["make_engine", "is_driver_error", "is_integrity_error", "translate", "guard"]
+__all__ = ["DEFAULT_BUSY_TIMEOUT", "make_engine", "is_driver_error", "is_integrity_error", "translate", "guard"]
 
 _BUSY_SQLSTATES = {"55P03", "40P01", "40001"}  # lock_not_available, deadlock, serialization
 _READ_ONLY_SQLSTATES = {"25006"}  # read_only_sql_transaction
 _LOCK_TIMEOUT_MAX_MS = 2**31 - 1  # PostgreSQL's lock_timeout is an int of milliseconds
+
+
+#: Seconds a connection waits for another writer's lock unless told otherwise (`hestore.open`, the ``db``
+#: commands).
+DEFAULT_BUSY_TIMEOUT = 5.0
 
 
 def make_engine(

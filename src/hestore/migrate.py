@@ -374,7 +374,9 @@ def schema_state(connection: sa.Connection) -> SchemaState:
     return SchemaState(current, head, "behind" if current in revisions() else "ahead")
 
 
-def database_state(url: str | sa.engine.URL | None, *, busy_timeout: float = 5.0) -> SchemaState:
+def database_state(
+    url: str | sa.engine.URL | None, *, busy_timeout: float = drivers.DEFAULT_BUSY_TIMEOUT
+) -> SchemaState:
     """Where the database at ``url`` stands, without changing anything (``hestore db current``).
 
     A SQLite file that does not exist yet is ``"new"`` and is not created.
@@ -408,7 +410,9 @@ def database_state(url: str | sa.engine.URL | None, *, busy_timeout: float = 5.0
         engine.dispose()
 
 
-def upgrade_database(url: str | sa.engine.URL | None, *, busy_timeout: float = 5.0) -> tuple[SchemaState, SchemaState]:
+def upgrade_database(
+    url: str | sa.engine.URL | None, *, busy_timeout: float = drivers.DEFAULT_BUSY_TIMEOUT
+) -> tuple[SchemaState, SchemaState]:
     """Bring the database at ``url`` to head, creating it if new (``hestore db upgrade``).
 
     ``busy_timeout`` is how long to wait for another writer's lock, as for `hestore.open`.

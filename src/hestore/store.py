@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from typing import Iterator
 
 from hestore import bulk, interop, schema, urls
+from hestore import _drivers as drivers
 from hestore import _values as values
 from hestore import io as mesh_io
 from hestore.errors import InvalidInputError, MeshExistsError, MeshNotFoundError
@@ -32,7 +33,7 @@ __all__ = ["open", "Store", "DEFAULT_URL", "DEFAULT_BUSY_TIMEOUT"]
 DEFAULT_URL = urls.DEFAULT_URL
 
 #: Seconds `open`'s store waits for another writer's lock, unless told otherwise.
-DEFAULT_BUSY_TIMEOUT = 5.0
+DEFAULT_BUSY_TIMEOUT = drivers.DEFAULT_BUSY_TIMEOUT
 
 
 def open(
